@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Set up convsss in ./.venv; safe to run again (it only does what is missing).
+#  1. a virtual environment with the package, its pinned dependencies and the dev tools;
+#  2. a libLLVM >= 17 for Dr.Jit's CPU backend: `apt-get install libllvm19` when the package finds none.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PYTHON=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+    echo "convsss setup: creating .venv with $($PYTHON --version)"
+    "$PYTHON" -m venv .venv
+fi
+if ! .venv/bin/python -c "import convsss, pytest" 2>/dev/null \
+   || [ pyproject.toml -nt .venv/.convsss-installed ]; then
+    echo "convsss setup: installing the package and its pinned dependencies (a few minutes the first time)"
+    .venv/bin/python -m pip install --quiet --upgrade pip
+    .venv/bin/python -m pip install --quiet -e ".[dev]"
+    touch .venv/.convsss-installed
+fi
+
+if ! .venv/bin/python -c "from convsss.llvm import find_libllvm; find_libllvm()" 2>/dev/null; then
+    echo "convsss setup: no libLLVM >= 17 found; installing libllvm19 with apt"
+    SUDO=""
+    [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 >/dev/null
+    .venv/bin/python -c "from convsss.llvm import find_libllvm; print('convsss setup: using', find_libllvm())"
+fi

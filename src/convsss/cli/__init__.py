@@ -1,0 +1,12 @@
+"""The ``convsss`` command line: one module per command, all registered on :data:`cli`."""
+
+from . import materials  # noqa: F401  (registers the command)
+from .main import cli
+
+
+def main(argv=None):
+    """Console entry point."""
+    return cli.main(args=argv, prog_name="convsss")
+
+
+__all__ = ["cli", "main"]

@@ -1,0 +1,78 @@
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from scipy.integrate import quad
+
+from convsss import __version__
+from convsss.cli import cli
+
+
+def run(*args):
+    return CliRunner().invoke(cli, list(args))
+
+
+def test_help_and_version():
+    assert "materials" in run("--help").output
+    assert __version__ in run("--version").output
+
+
+def _independent_total(s, a, eta):
+    """Total diffuse reflectance by integrating a separately written dipole numerically."""
+    st = s + a
+    alpha = s / st
+    sigma_tr = np.sqrt(3 * a * st)
+    fdr = -1.4399 / eta**2 + 0.7099 / eta + 0.6681 + 0.0636 * eta
+    zr = 1 / st
+    zv = zr * (1 + 4 / 3 * (1 + fdr) / (1 - fdr))
+
+    def rd(r):
+        out = 0.0
+        for z in (zr, zv):
+            d = np.hypot(r, z)
+            out += z * (sigma_tr + 1 / d) * np.exp(-sigma_tr * d) / d**2
+        return alpha / (4 * np.pi) * out
+
+    return quad(lambda u: 2 * np.pi * np.exp(2 * u) * rd(np.exp(u)), np.log(1e-7), np.log(1e7), limit=1000)[0]
+
+
+def test_materials_json_matches_independent_implementation():
+    result = run("materials", "--json")
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.output)
+    assert len(rows) == 47
+    for row in rows:
+        assert set(row) == {"name", "sigma_s_prime", "sigma_a", "eta", "total_reflectance", "mfp_mm",
+                            "diffusion_length_mm"}
+        assert isinstance(row["eta"], float)
+        for c in range(3):
+            expected = _independent_total(row["sigma_s_prime"][c], row["sigma_a"][c], row["eta"])
+            assert row["total_reflectance"][c] == pytest.approx(expected, abs=1e-3), (row["name"], c)
+    spectralon = next(r for r in rows if r["name"] == "Spectralon")
+    assert spectralon["diffusion_length_mm"] == [None, None, None]
+
+
+def test_materials_table():
+    result = run("materials")
+    assert result.exit_code == 0
+    lines = result.output.splitlines()
+    assert len(lines) == 48 and lines[0].startswith("name")
+    assert any(line.startswith("Wholemilk") and "0.908/0.881/0.759" in line for line in lines)
+
+
+def test_console_script_reports_bad_input_in_one_line():
+    # The installed entry point, as a user runs it: a bad input is one line on stderr and exit code 2.
+    code = "from convsss.cli import cli\n" \
+           "from convsss.materials import material\n" \
+           "import click\n" \
+           "@cli.command()\n" \
+           "def probe():\n    material('wholemilkk')\n" \
+           "cli.main(args=['probe'], prog_name='convsss')\n"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0
+    assert proc.stderr.startswith("error: unknown material 'wholemilkk'; did you mean 'Wholemilk'")
+    assert "Traceback" not in proc.stderr
