@@ -1,0 +1,117 @@
+"""Irradiance samples and the view frame: what every transport takes in.
+
+An :class:`IrradianceSamples` is a set of points on the whole surface of one translucent object (front and back),
+each with its area ``A_i`` (mm^2), normal and irradiance ``E_i`` (paper Eq. 2, already multiplied by
+``F_t(eta, w_i)``), so each carries the flux ``Phi_i = E_i A_i`` that the transports spread with the profile:
+``M(x) = sum_i R_d(|x - x_i|) Phi_i`` (paper Eq. 1 without the outgoing Fresnel factor).
+
+A :class:`ViewFrame` is the camera's orthonormal frame; the layers of the convolution transport are perpendicular to
+its ``forward`` axis (paper §4.2: "parallel to the projection plane of the camera"). Lengths are in mm throughout.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConvsssError
+
+
+def as_points(points, name="points"):
+    """``points`` as a C-contiguous float64 array of shape (N, 3), or a one-line error."""
+    arr = np.ascontiguousarray(points, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ConvsssError(f"{name} must have shape (N, 3), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ConvsssError(f"{name} contain NaN or infinite values")
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class IrradianceSamples:
+    """Points on a surface with area (mm^2) and irradiance ``E`` (RGB, any radiometric unit per mm^2).
+
+    Attributes
+    ----------
+    position : (N, 3) float64, mm
+    area : (N,) float64, mm^2, > 0
+    irradiance : (N, 3) float64, >= 0
+    normal : (N, 3) float64 or None, outward unit normals (for diagnostics; the transports do not need them)
+    """
+
+    position: np.ndarray
+    area: np.ndarray
+    irradiance: np.ndarray
+    normal: np.ndarray | None = None
+
+    def __post_init__(self):
+        position = as_points(self.position, "sample positions")
+        n = len(position)
+        area = np.ascontiguousarray(self.area, dtype=np.float64).reshape(-1)
+        irradiance = np.ascontiguousarray(self.irradiance, dtype=np.float64)
+        if irradiance.ndim == 1:
+            irradiance = np.repeat(irradiance[:, None], 3, axis=1)
+        if area.shape != (n,) or irradiance.shape != (n, 3):
+            raise ConvsssError(f"samples: {n} positions need {n} areas and ({n}, 3) irradiance values, "
+                               f"got {area.shape} and {irradiance.shape}")
+        if not np.all(np.isfinite(area)) or np.any(area <= 0):
+            raise ConvsssError("samples: every area must be finite and > 0")
+        if not np.all(np.isfinite(irradiance)) or np.any(irradiance < 0):
+            raise ConvsssError("samples: irradiance must be finite and >= 0")
+        object.__setattr__(self, "position", position)
+        object.__setattr__(self, "area", area)
+        object.__setattr__(self, "irradiance", irradiance)
+        if self.normal is not None:
+            object.__setattr__(self, "normal", as_points(self.normal, "sample normals"))
+
+    def __len__(self):
+        return len(self.position)
+
+    @property
+    def flux(self):
+        """``Phi_i = E_i A_i``, shape (N, 3)."""
+        return self.irradiance * self.area[:, None]
+
+
+@dataclass(frozen=True, eq=False)
+class ViewFrame:
+    """An orthonormal camera frame: ``origin`` and the axes ``right`` (x), ``up`` (y), ``forward`` (z, depth)."""
+
+    origin: np.ndarray
+    right: np.ndarray
+    up: np.ndarray
+    forward: np.ndarray
+
+    def __post_init__(self):
+        axes = np.array([self.right, self.up, self.forward], dtype=np.float64)
+        if axes.shape != (3, 3) or not np.allclose(axes @ axes.T, np.eye(3), atol=1e-6):
+            raise ConvsssError("view frame axes right, up, forward must be orthonormal")
+        for name, value in zip(("right", "up", "forward"), axes):
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "origin", np.asarray(self.origin, dtype=np.float64).reshape(3))
+
+    @classmethod
+    def look_at(cls, origin, target, up=(0.0, 1.0, 0.0)):
+        """The frame of a camera at ``origin`` looking at ``target`` (``up`` need not be orthogonal)."""
+        origin = np.asarray(origin, dtype=np.float64)
+        forward = np.asarray(target, dtype=np.float64) - origin
+        if np.linalg.norm(forward) == 0:
+            raise ConvsssError("view frame: origin and target coincide")
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, np.asarray(up, dtype=np.float64))
+        if np.linalg.norm(right) < 1e-9:
+            raise ConvsssError("view frame: the up vector is parallel to the view direction")
+        right /= np.linalg.norm(right)
+        return cls(origin, right, np.cross(right, forward), forward)
+
+    @classmethod
+    def from_matrix(cls, to_world):
+        """From a 4x4 camera-to-world matrix in Mitsuba's convention (local +z forward, +y up, +x to the left)."""
+        m = np.asarray(to_world, dtype=np.float64)
+        forward = m[:3, 2] / np.linalg.norm(m[:3, 2])
+        up = m[:3, 1] / np.linalg.norm(m[:3, 1])
+        return cls(m[:3, 3], np.cross(forward, up), up, forward)
+
+    def to_view(self, points):
+        """World points (N, 3) to view coordinates (x along right, y along up, z depth along forward)."""
+        axes = np.stack([self.right, self.up, self.forward])
+        return (np.asarray(points, dtype=np.float64) - self.origin) @ axes.T

@@ -1,0 +1,48 @@
+"""The interface every transport implements, so that transports are interchangeable and comparable.
+
+A transport is built from :class:`~convsss.samples.IrradianceSamples` and a :class:`~convsss.profiles.Profile` and
+answers ``exitance(points) -> (K, 3)``: the radiant exitance due to multiple scattering,
+
+    M(x) = ∫_A R_d(|x - x_i|) E(x_i) dA(x_i) ≈ sum_i R_d(|x - x_i|) E_i A_i      (paper Eq. 1, 4),
+
+in the units of ``E``. The outgoing radiance is ``L = (1/pi) F_t(eta, w_o) M`` (paper Eq. 7), applied by shading,
+never here. A transport knows nothing of Mitsuba.
+"""
+
+import numpy as np
+
+from ..samples import IrradianceSamples, as_points
+from ..timing import StageTimer
+
+
+class Transport:
+    """Base class: keeps the samples, the profile, per-stage timings, and answers :meth:`exitance`."""
+
+    name = "transport"
+
+    def __init__(self, samples, profile):
+        if not isinstance(samples, IrradianceSamples):
+            raise TypeError("samples must be an IrradianceSamples")
+        self.samples = samples
+        self.profile = profile
+        self.timings = StageTimer()
+
+    def exitance(self, points):
+        """Radiant exitance ``M`` at ``points`` (K, 3) in mm; returns (K, 3) float64."""
+        points = as_points(points, "query points")
+        with self.timings("lookup"):
+            return self._exitance(points)
+
+    def _exitance(self, points):
+        raise NotImplementedError
+
+    @property
+    def stats(self):
+        """A JSON-ready dict describing the run: transport name, sample count, per-stage seconds."""
+        return {"transport": self.name, "samples": len(self.samples),
+                "seconds": {k: float(v) for k, v in self.timings.items()}}
+
+
+def total_flux(samples):
+    """``sum_i E_i A_i`` per channel: with the profile's total reflectance, the energy check of a transport."""
+    return np.sum(samples.flux, axis=0)
