@@ -1,0 +1,112 @@
+"""Images in and out: linear EXR and tone-mapped PNG through Mitsuba's own bitmap I/O, written whole or not at all.
+
+Tone mapping (for display only; EXRs stay linear):
+
+- ``reinhard``: Reinhard et al. 2002's photographic operator (the paper's choice): scale to ``key / L_w`` with the
+  log-average luminance ``L_w = exp(mean(log(delta + L)))``, then ``L_d = L (1 + L / L_white^2) / (1 + L)``
+  with ``L_white`` the largest scaled luminance; colours keep their ratios;
+- ``exposure``: ``rgb * 2^exposure``, clipped;
+- ``none``: clipped as is.
+
+Then sRGB encoding and 8 bits.
+"""
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ConvsssError
+
+TONEMAPS = ("reinhard", "exposure", "none")
+_LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def luminance(rgb):
+    """Rec. 709 luminance of linear RGB (..., 3)."""
+    return np.asarray(rgb, dtype=np.float64)[..., :3] @ _LUMINANCE
+
+
+def tonemap(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
+    """Linear RGB (H, W, 3) to display values in [0, 1] (before sRGB encoding).
+
+    ``mask`` (H, W) restricts the log-average of the Reinhard operator to the pixels that matter (e.g. the object).
+    """
+    rgb = np.maximum(np.nan_to_num(np.asarray(rgb, dtype=np.float64)[..., :3]), 0.0)
+    if method == "none":
+        return np.clip(rgb, 0.0, 1.0)
+    if method == "exposure":
+        return np.clip(rgb * 2.0 ** float(exposure), 0.0, 1.0)
+    if method != "reinhard":
+        raise ConvsssError(f"unknown tone mapping {method!r}: choose one of {', '.join(TONEMAPS)}")
+    lum = luminance(rgb) * 2.0 ** float(exposure)
+    region = lum[mask] if mask is not None and np.any(mask) else lum[lum > 0]
+    if region.size == 0:
+        return np.zeros_like(rgb)
+    log_average = np.exp(np.mean(np.log(1e-6 + region)))
+    scaled = key / log_average * lum
+    white2 = max(float(np.max(scaled)), 1e-12) ** 2
+    display = scaled * (1.0 + scaled / white2) / (1.0 + scaled)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(lum > 0, display / lum, 0.0) * 2.0 ** float(exposure)
+    return np.clip(rgb * ratio[..., None], 0.0, 1.0)
+
+
+def srgb_encode(display):
+    """Linear [0, 1] to the sRGB transfer curve, then to uint8."""
+    x = np.clip(display, 0.0, 1.0)
+    encoded = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.round(encoded * 255.0).astype(np.uint8)
+
+
+def _atomic_write(path, write):
+    """Call ``write(tmp_path)`` on a temporary file in the target folder, then rename it over ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _bitmap(array):
+    from .backend import load_mitsuba
+
+    mi = load_mitsuba()
+    return mi, mi.Bitmap(np.ascontiguousarray(array))
+
+
+def write_exr(path, rgb):
+    """Write linear RGB (H, W, 3) as a float32 OpenEXR file, atomically."""
+    rgb = np.asarray(rgb, dtype=np.float32)
+    if rgb.ndim != 3 or rgb.shape[2] < 3:
+        raise ConvsssError(f"an RGB image must have shape (H, W, 3), got {rgb.shape}")
+    mi, bitmap = _bitmap(rgb[..., :3])
+    return _atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.OpenEXR))
+
+
+def write_png(path, rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
+    """Tone-map linear RGB (H, W, 3) and write an 8-bit sRGB PNG, atomically. Returns the path."""
+    pixels = srgb_encode(tonemap(rgb, method, key, exposure, mask))
+    mi, bitmap = _bitmap(pixels)
+    return _atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.PNG))
+
+
+def read_image(path):
+    """Read an EXR (linear) or PNG/JPEG (sRGB-decoded to linear) image as float64 (H, W, 3)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConvsssError(f"image {str(path)!r} does not exist")
+    mi, _ = _bitmap(np.zeros((1, 1, 3), np.float32))
+    try:
+        bitmap = mi.Bitmap(str(path))
+    except Exception as error:
+        raise ConvsssError(f"cannot read image {str(path)!r}: {error}") from None
+    linear = bitmap.convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
+    return np.array(linear, dtype=np.float64).reshape(bitmap.height(), bitmap.width(), 3)

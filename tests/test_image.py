@@ -1,0 +1,44 @@
+import numpy as np
+import pytest
+
+from convsss.errors import ConvsssError
+from convsss.image import read_image, srgb_encode, tonemap, write_exr, write_png
+
+
+def test_exr_roundtrip_is_lossless(tmp_path):
+    rgb = np.random.default_rng(0).random((7, 5, 3)).astype(np.float32) * 10
+    path = write_exr(tmp_path / "a.exr", rgb)
+    np.testing.assert_array_equal(read_image(path), rgb)
+    assert [p.name for p in tmp_path.iterdir()] == ["a.exr"]  # no temporary file left
+
+
+def test_png_roundtrip_decodes_srgb(tmp_path):
+    rgb = np.linspace(0, 1, 4 * 4 * 3).reshape(4, 4, 3)
+    back = read_image(write_png(tmp_path / "a.png", rgb, method="none"))
+    np.testing.assert_allclose(back, rgb, atol=0.01)
+
+
+def test_reinhard_maps_log_average_to_key():
+    lum = np.full((8, 8, 3), 5.0)
+    out = tonemap(lum, "reinhard", key=0.18)
+    # Uniform image: scaled luminance 0.18 = L_white, so L_d = 0.18 (1 + 1/0.18) / 1.18.
+    np.testing.assert_allclose(out, 0.18 * (1 + 1 / 0.18) / 1.18, rtol=1e-6)
+    assert np.all(np.diff(tonemap(np.linspace(0.01, 100, 30).reshape(1, 30, 1).repeat(3, 2))[0, :, 0]) > 0)
+
+
+def test_exposure_and_encoding():
+    np.testing.assert_allclose(tonemap(np.full((1, 1, 3), 0.25), "exposure", exposure=1), 0.5)
+    assert srgb_encode(np.array([0.0, 1.0, 0.5])).tolist() == [0, 255, 188]
+
+
+def test_failed_write_leaves_nothing(tmp_path):
+    with pytest.raises(ConvsssError):
+        write_exr(tmp_path / "b.exr", np.zeros((4, 4)))
+    with pytest.raises(ConvsssError, match="tone mapping"):
+        write_png(tmp_path / "b.png", np.zeros((4, 4, 3)), method="filmic")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_missing_image():
+    with pytest.raises(ConvsssError, match="does not exist"):
+        read_image("/nonexistent/x.exr")
