@@ -33,7 +33,7 @@ class IrradianceSamples:
     Attributes
     ----------
     position : (N, 3) float64, mm
-    area : (N,) float64, mm^2, > 0
+    area : (N,) float64, mm^2, > 0 (a scalar is broadcast)
     irradiance : (N, 3) float64, >= 0
     normal : (N, 3) float64 or None, outward unit normals (for diagnostics; the transports do not need them)
     """
@@ -46,7 +46,8 @@ class IrradianceSamples:
     def __post_init__(self):
         position = as_points(self.position, "sample positions")
         n = len(position)
-        area = np.ascontiguousarray(self.area, dtype=np.float64).reshape(-1)
+        area = np.asarray(self.area, dtype=np.float64)
+        area = np.ascontiguousarray(np.broadcast_to(area, (n,)) if area.ndim == 0 else area.reshape(-1))
         irradiance = np.ascontiguousarray(self.irradiance, dtype=np.float64)
         if irradiance.ndim == 1:
             irradiance = np.repeat(irradiance[:, None], 3, axis=1)

@@ -6,16 +6,22 @@
 
 from ..errors import ConvsssError
 from .base import Transport, total_flux
+from .convolution import ConvolutionTransport
 from .exact import ExactTransport
 
-TRANSPORTS = {"exact": ExactTransport}
+TRANSPORTS = {"convolution": ConvolutionTransport, "exact": ExactTransport}
 
 
-def make_transport(kind, samples, profile, **params):
-    """Build the transport called ``kind`` from ``samples`` and ``profile`` with its own keyword ``params``."""
+def make_transport(kind, samples, profile, frame=None, **params):
+    """Build the transport called ``kind`` from ``samples`` and ``profile`` with its own keyword ``params``.
+
+    ``frame`` (the camera's :class:`~convsss.samples.ViewFrame`) goes to the transports that use one.
+    """
     if kind not in TRANSPORTS:
         raise ConvsssError(f"unknown transport {kind!r}: choose one of {', '.join(sorted(TRANSPORTS))}")
+    if kind == "convolution":
+        params["frame"] = frame
     return TRANSPORTS[kind](samples, profile, **params)
 
 
-__all__ = ["ExactTransport", "TRANSPORTS", "Transport", "make_transport", "total_flux"]
+__all__ = ["ConvolutionTransport", "ExactTransport", "TRANSPORTS", "Transport", "make_transport", "total_flux"]

@@ -1,0 +1,303 @@
+"""The layered convolution transport of Munoz et al. 2011 (§4–5).
+
+1. **Layers** (§4.2): ``n_l`` planes perpendicular to the view axis at depths ``z_l = min z + l dz``,
+   ``dz = (max z - min z)/(n_l - 1)``, over the samples' depth range.
+2. **Splatting**: each sample's flux ``Phi_i = E_i A_i`` goes to the grid bilinearly in x, y and to its two nearest
+   layers, linearly in depth (``splat="linear"``) or half and half (``splat="half"``, the paper's rule).
+3. **Kernels** (Eq. 5): ``K_m = R_d(sqrt(r^2 + (m dz)^2))`` as cell averages (:mod:`.kernels`).
+4. **Exitance** (Eq. 6): ``M_l = sum_i K_{|i-l|} * Phi_i`` — by linearity one forward FFT per non-empty source
+   layer, one fused per-frequency mixing pass ``M^_l = sum_i K^_{|i-l|} Phi^_i``, and one inverse FFT per output
+   layer that a query needs (the paper's visible-layer optimization). Convolutions are linear: the FFT grid is
+   padded by the kernel's reach (bounded by the grid), so nothing wraps around.
+5. **Threshold** (Eq. 8, per channel): the pair (i, l) is skipped when ``R_d(|i-l| dz) < t R_d(0)``.
+6. **Lookup** (Eq. 7): bilinear in x, y inside the two layers that bracket the point, linear in depth.
+
+Cells are ``cell_size / downsample`` mm wide (``downsample`` 1, 1/2, 1/4: the paper's lower-resolution layers).
+"""
+
+import numba
+import numpy as np
+import scipy.fft
+
+from ..errors import ConvsssError
+from ..samples import ViewFrame
+from .base import Transport
+from .kernels import kernel_spectra
+
+SPLATS = ("linear", "half")
+DEFAULT_RESOLUTION = 512
+
+
+def available_memory():
+    """Bytes of memory available now (``MemAvailable``), or None where that cannot be read."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+@numba.njit(cache=True)
+def _layer_of(z, z0, dz, n_layers):
+    """Lower bracketing layer and the depth weight of the upper one (0 with a single layer)."""
+    if n_layers == 1:
+        return 0, 0.0
+    u = (z - z0) / dz
+    lo = min(max(int(np.floor(u)), 0), n_layers - 2)
+    return lo, min(max(u - lo, 0.0), 1.0)
+
+
+@numba.njit(cache=True)
+def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
+    """Add each sample's flux to 4 cells x 2 layers of ``grid`` (n_l, 3, Py, Px), serially (deterministic)."""
+    height, width = grid.shape[2], grid.shape[3]
+    for k in range(view.shape[0]):
+        gx = (view[k, 0] - x0) / h
+        gy = (view[k, 1] - y0) / h
+        i = min(max(int(np.floor(gx)), 0), width - 2)
+        j = min(max(int(np.floor(gy)), 0), height - 2)
+        fx = gx - i
+        fy = gy - j
+        lo, w_hi = _layer_of(view[k, 2], z0, dz, n_layers)
+        if half and n_layers > 1:
+            w_hi = 0.5
+        for dl in range(2 if n_layers > 1 else 1):
+            wl = w_hi if dl == 1 else 1.0 - w_hi
+            for dj in range(2):
+                wy = fy if dj == 1 else 1.0 - fy
+                for di in range(2):
+                    w = wl * wy * (fx if di == 1 else 1.0 - fx)
+                    for c in range(3):
+                        grid[lo + dl, c, j + dj, i + di] += w * flux[k, c]
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def _mix(phi_hat, kernel_hat, out_layers, source_layers, keep, out):
+    """``out[o] = sum_s K^[|source_layers[s] - out_layers[o]|] * phi_hat[s]`` over the pairs kept per channel."""
+    n_freq_y, n_freq_x = out.shape[2], out.shape[3]
+    for ky in numba.prange(n_freq_y):
+        for o in range(out_layers.shape[0]):
+            for c in range(3):
+                row = out[o, c, ky]
+                for s in range(source_layers.shape[0]):
+                    m = abs(source_layers[s] - out_layers[o])
+                    if not keep[m, c]:
+                        continue
+                    k_row = kernel_hat[m, c, ky]
+                    p_row = phi_hat[s, c, ky]
+                    for kx in range(n_freq_x):
+                        row[kx] += k_row[kx] * p_row[kx]
+
+
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def _lookup(view, x0, y0, h, z0, dz, n_layers, exitance, out):
+    """Bilinear in x, y within the two bracketing layers of ``exitance`` (n_l, 3, H, W), linear in depth (Eq. 7)."""
+    height, width = exitance.shape[2], exitance.shape[3]
+    for k in numba.prange(view.shape[0]):
+        gx = min(max((view[k, 0] - x0) / h, 0.0), width - 1.0)
+        gy = min(max((view[k, 1] - y0) / h, 0.0), height - 1.0)
+        i = min(int(gx), width - 2)
+        j = min(int(gy), height - 2)
+        fx = gx - i
+        fy = gy - j
+        lo, w_hi = _layer_of(view[k, 2], z0, dz, n_layers)
+        for c in range(3):
+            acc = 0.0
+            for dl in range(2 if n_layers > 1 else 1):
+                wl = w_hi if dl == 1 else 1.0 - w_hi
+                layer = exitance[lo + dl, c]
+                bilinear = ((1 - fy) * ((1 - fx) * layer[j, i] + fx * layer[j, i + 1])
+                            + fy * ((1 - fx) * layer[j + 1, i] + fx * layer[j + 1, i + 1]))
+                acc += wl * bilinear
+            out[k, c] = acc
+
+
+@numba.njit(cache=True)
+def _needed_layers(view, z0, dz, n_layers):
+    """Which layers bracket at least one of the points."""
+    need = np.zeros(n_layers, dtype=np.bool_)
+    for k in range(view.shape[0]):
+        lo, _ = _layer_of(view[k, 2], z0, dz, n_layers)
+        need[lo] = True
+        if n_layers > 1:
+            need[lo + 1] = True
+    return need
+
+
+class ConvolutionTransport(Transport):
+    """Layered FFT convolution transport; see the module docstring.
+
+    Parameters
+    ----------
+    samples : IrradianceSamples
+    profile : Profile
+    frame : ViewFrame
+        The camera frame; layers are perpendicular to ``frame.forward``.
+    layers : int
+        Number of layers ``n_l`` (paper: 4–8 is a good trade-off).
+    cell_size : float, optional
+        Grid cell in mm at full resolution (the pixel footprint at the object). Default: the larger extent of the
+        samples in the image plane divided by ``resolution``.
+    resolution : int, optional
+        Cells across the larger image-plane extent when ``cell_size`` is not given (default 512).
+    downsample : float
+        Layer resolution relative to ``cell_size`` (1, 1/2, 1/4): cells are ``cell_size / downsample`` wide.
+    threshold : float
+        Paper Eq. 8: skip a layer pair when ``R_d(|i-l| dz) < t R_d(0)``; 0 keeps all pairs.
+    splat : {"linear", "half"}
+        Depth splatting: linear weights, or half and half to the two nearest layers (the paper's rule).
+    memory_limit : int, optional
+        Refuse grids whose estimated memory exceeds this many bytes (default: 75 % of available memory).
+    kernel_tail : float
+        Kernels reach the radius holding all but this fraction of the profile's energy (bounded by the grid).
+    workers : int
+        Threads for ``scipy.fft`` (-1: all cores).
+    """
+
+    name = "convolution"
+
+    def __init__(self, samples, profile, frame, layers=8, cell_size=None, resolution=None, downsample=1.0,
+                 threshold=1e-3, splat="linear", memory_limit=None, kernel_tail=1e-4, workers=-1):
+        super().__init__(samples, profile)
+        if not isinstance(frame, ViewFrame):
+            raise ConvsssError("the convolution transport needs the camera's ViewFrame (frame=...)")
+        self._check_parameters(layers, cell_size, resolution, downsample, threshold, splat)
+        self.frame, self.workers = frame, workers
+        self.threshold, self.splat, self.downsample = float(threshold), splat, float(downsample)
+
+        with self.timings("splat"):
+            self._view = frame.to_view(samples.position)
+            self._setup_grid(layers, cell_size, resolution, profile, kernel_tail)
+        self.memory_bytes = self._memory_estimate()
+        limit = memory_limit if memory_limit is not None else 0.75 * (available_memory() or np.inf)
+        if self.memory_bytes > limit:
+            raise ConvsssError(f"the convolution grid {self.grid_shape} x {self.n_layers} layers (FFT "
+                               f"{self.padded_shape}) needs about {self.memory_bytes / 2**30:.1f} GiB, more than the "
+                               f"{limit / 2**30:.1f} GiB allowed: use fewer layers, a lower resolution or downsample")
+        with self.timings("splat"):
+            grid = np.zeros((self.n_layers, 3) + self.padded_shape, dtype=np.float32)
+            _splat(self._view, np.ascontiguousarray(samples.flux), self.x0, self.y0, self.cell, self.z0, self.dz,
+                   self.n_layers, splat == "half", grid)
+            self.source_layers = np.flatnonzero(grid.reshape(self.n_layers, -1).any(axis=1)).astype(np.int64)
+        with self.timings("kernels"):
+            table = profile.radial_table()
+            r_core = float(np.min(profile.radius_below(0.5)))
+            self._kernel_hat, self.kernel_energy, self.kernels_cached = kernel_spectra(
+                table, r_core, self.cell, self.dz, self.n_layers, self.reach, self.padded_shape, workers)
+            at_layers = profile(self.dz * np.arange(self.n_layers))
+            self.keep = at_layers >= self.threshold * profile(0.0)[None, :]
+        with self.timings("forward_fft"):
+            self._phi_hat = scipy.fft.rfft2(grid[self.source_layers], workers=workers)
+        del grid
+        self._exitance_layers = np.zeros((self.n_layers, 3) + self.grid_shape, dtype=np.float32)
+        self.computed = np.zeros(self.n_layers, dtype=bool)
+
+    @staticmethod
+    def _check_parameters(layers, cell_size, resolution, downsample, threshold, splat):
+        if int(layers) != layers or layers < 1:
+            raise ConvsssError(f"layers={layers!r} is not allowed: it must be an integer >= 1")
+        if cell_size is not None and resolution is not None:
+            raise ConvsssError("give the grid's cell_size or its resolution, not both")
+        if cell_size is not None and not (np.isfinite(cell_size) and cell_size > 0):
+            raise ConvsssError(f"cell_size={cell_size!r} is not allowed: it must be a finite length > 0 (mm)")
+        if resolution is not None and (int(resolution) != resolution or resolution < 2):
+            raise ConvsssError(f"resolution={resolution!r} is not allowed: it must be an integer >= 2")
+        if not (np.isfinite(downsample) and 0 < downsample <= 1):
+            raise ConvsssError(f"downsample={downsample!r} is not allowed: it must lie in (0, 1] (e.g. 1, 0.5, 0.25)")
+        if not (np.isfinite(threshold) and 0 <= threshold < 1):
+            raise ConvsssError(f"threshold={threshold!r} is not allowed: it must lie in [0, 1)")
+        if splat not in SPLATS:
+            raise ConvsssError(f"splat={splat!r} is not allowed: choose one of {', '.join(SPLATS)}")
+
+    def _setup_grid(self, layers, cell_size, resolution, profile, kernel_tail):
+        lo, hi = self._view.min(axis=0), self._view.max(axis=0)
+        extent = float(max(hi[0] - lo[0], hi[1] - lo[1]))
+        if cell_size is None:
+            cell_size = max(extent, 1e-9) / (resolution or DEFAULT_RESOLUTION)
+        self.cell = float(cell_size) / self.downsample
+        depth_range = float(hi[2] - lo[2])
+        flat = depth_range <= 1e-9 * max(extent, depth_range, 1e-300)
+        self.n_layers = 1 if (layers == 1 or flat) else int(layers)
+        self.z0 = float(lo[2])
+        self.dz = depth_range / (self.n_layers - 1) if self.n_layers > 1 else 0.0
+        self.x0, self.y0 = float(lo[0]) - self.cell, float(lo[1]) - self.cell
+        width = int(np.ceil((hi[0] - lo[0]) / self.cell)) + 3
+        height = int(np.ceil((hi[1] - lo[1]) / self.cell)) + 3
+        self.grid_shape = (height, width)
+        reach = int(np.ceil(float(np.max(profile.radius_energy(kernel_tail))) / self.cell))
+        self.reach = (min(reach, height - 1), min(reach, width - 1))
+        self.padded_shape = (scipy.fft.next_fast_len(height + self.reach[0], real=True),
+                             scipy.fft.next_fast_len(width + self.reach[1], real=True))
+
+    def _memory_estimate(self):
+        """Bytes held at the peak: the splat grid, source spectra, kernel spectra, one batch of output spectra and
+        its inverse, and the exitance layers."""
+        py, px = self.padded_shape
+        n = self.n_layers
+        spatial = n * 3 * py * px * 4
+        spectrum = n * 3 * py * (px // 2 + 1)
+        return int(spatial + spectrum * 8 + spectrum * 4 + spectrum * 8 + spatial
+                   + n * 3 * self.grid_shape[0] * self.grid_shape[1] * 4)
+
+    def compute_layers(self, layers):
+        """Exitance images of ``layers`` (those not computed yet): mixing per frequency, then inverse FFTs."""
+        todo = np.array([n for n in np.unique(layers) if not self.computed[n]], dtype=np.int64)
+        if len(todo) == 0:
+            return
+        py, px = self.padded_shape
+        with self.timings("mixing"):
+            out = np.zeros((len(todo), 3, py, px // 2 + 1), dtype=np.complex64)
+            _mix(self._phi_hat, self._kernel_hat, todo, self.source_layers, self.keep, out)
+        with self.timings("inverse_fft"):
+            spatial = scipy.fft.irfft2(out, s=self.padded_shape, workers=self.workers)
+            height, width = self.grid_shape
+            self._exitance_layers[todo] = spatial[:, :, :height, :width]
+        self.computed[todo] = True
+
+    def _exitance(self, points):
+        view = self.frame.to_view(points)
+        need = _needed_layers(view, self.z0, self.dz, self.n_layers)
+        self.compute_layers(np.flatnonzero(need))
+        out = np.empty((len(points), 3))
+        _lookup(view, self.x0, self.y0, self.cell, self.z0, self.dz, self.n_layers, self._exitance_layers, out)
+        return out
+
+    def layer_image(self, layer):
+        """The exitance image ``M_l`` (3, H, W) of one layer, computing it if needed."""
+        self.compute_layers([layer])
+        return self._exitance_layers[layer].copy()
+
+    @property
+    def pairs_per_layer(self):
+        """For every layer, how many non-empty source layers it convolves (max over channels): the paper's ``c``."""
+        distance = np.abs(self.source_layers[None, :] - np.arange(self.n_layers)[:, None])
+        return self.keep[distance].sum(axis=1).max(axis=1)
+
+    @property
+    def stats(self):
+        stats = super().stats
+        stats.update({
+            "layers": self.n_layers,
+            "grid_shape": list(self.grid_shape),
+            "fft_shape": list(self.padded_shape),
+            "cell_size_mm": self.cell,
+            "downsample": self.downsample,
+            "threshold": self.threshold,
+            "splat": self.splat,
+            "layer_depths_mm": (self.z0 + self.dz * np.arange(self.n_layers)).tolist(),
+            "dz_mm": self.dz,
+            "kernel_reach_cells": list(self.reach),
+            "pairs_per_layer": self.pairs_per_layer.tolist(),
+            "convolutions_per_layer": float(self.pairs_per_layer.mean()),
+            "source_layers": self.source_layers.tolist(),
+            "layers_computed": np.flatnonzero(self.computed).tolist(),
+            "forward_ffts": len(self.source_layers),
+            "inverse_ffts": int(self.computed.sum()),
+            "kernels_cached": bool(self.kernels_cached),
+            "kernel_energy": self.kernel_energy.tolist(),
+            "memory_bytes": self.memory_bytes,
+        })
+        return stats
