@@ -1,15 +1,17 @@
 """Transports: from irradiance samples to radiant exitance ``M`` anywhere (see :mod:`convsss.transport.base`).
 
 - ``exact``: the direct sum over all samples (reference, small cases);
-- ``convolution``: the paper's layered FFT convolutions (§4–5).
+- ``convolution``: the paper's layered FFT convolutions (§4–5);
+- ``hierarchical``: Jensen & Buhler 2002's octree, the paper's comparison method (§6).
 """
 
 from ..errors import ConvsssError
 from .base import Transport, total_flux
 from .convolution import ConvolutionTransport
 from .exact import ExactTransport
+from .hierarchical import HierarchicalTransport
 
-TRANSPORTS = {"convolution": ConvolutionTransport, "exact": ExactTransport}
+TRANSPORTS = {"convolution": ConvolutionTransport, "exact": ExactTransport, "hierarchical": HierarchicalTransport}
 
 
 def make_transport(kind, samples, profile, frame=None, **params):
@@ -24,4 +26,5 @@ def make_transport(kind, samples, profile, frame=None, **params):
     return TRANSPORTS[kind](samples, profile, **params)
 
 
-__all__ = ["ConvolutionTransport", "ExactTransport", "TRANSPORTS", "Transport", "make_transport", "total_flux"]
+__all__ = ["ConvolutionTransport", "ExactTransport", "HierarchicalTransport", "TRANSPORTS", "Transport",
+           "make_transport", "total_flux"]

@@ -1,0 +1,78 @@
+"""``convsss compare``: error metrics of one image against a reference, over the object's pixels."""
+
+import json
+import math
+from pathlib import Path
+
+import click
+
+from .main import cli
+
+_ROWS = (("rmse", "RMSE"), ("relmse", "relative MSE"), ("mean_rel_error", "mean relative error"),
+         ("mean_reference", "mean A"), ("mean_test", "mean B"), ("mean_ratio", "mean B / mean A"),
+         ("max_reference", "max A"), ("max_test", "max B"))
+
+
+def _json_ready(value):
+    """NaN and infinities as null, recursively."""
+    if isinstance(value, list):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+@cli.command()
+@click.argument("reference", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("test", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--mask", "mask_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Image (PNG, EXR) of the object: pixels nonzero in any channel are compared. Default: the pixels "
+                   "where REFERENCE is nonzero (everything but a black background).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write a false-colour PNG of the signed relative luminance error (B - A) / A: blue where TEST is "
+                   "darker, white where equal, red where brighter, saturated at +-R (--range); black off the "
+                   "object; one pixel per block with --block.")
+@click.option("--range", "limit", type=float, default=0.2, show_default=True, metavar="R",
+              help="Relative error shown fully saturated in the --output image (0.2 = +-20 %).")
+@click.option("--block", type=click.IntRange(min=1), default=1, show_default=True, metavar="K",
+              help="Average K x K pixel blocks of both images (and the mask) before every metric, for noisy "
+                   "references; only blocks wholly inside the object count.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object instead of a table: reference, test, mask, size [W, H], block, pixels, "
+                   "relative_floor, and per channel (RGB 3-lists; null where undefined) rmse, relmse, "
+                   "mean_rel_error, mean_reference, mean_test, max_reference, max_test, mean_ratio; plus the "
+                   "scalar flip_mean and error_image (the --output path or null).")
+def compare(reference, test, mask_path, output, limit, block, as_json):
+    """Compare TEST (B) against REFERENCE (A), two linear images (EXR; PNG is decoded to linear) of one size.
+
+    Per RGB channel, over the object pixels: RMSE; relative MSE mean((B-A)^2 / (A^2 + f^2)); mean relative error
+    mean(|B-A| / max(A, f)), with f = 1 % of the reference's mean; the means and maxima; and mean(B) / mean(A)
+    (a uniformly scaled B reports its scale). FLIP: the mean over the object of the LDR FLIP error of both images
+    tone-mapped with one Reinhard operator (key 0.18 on the reference's log-average, shared white point, sRGB).
+    """
+    from ..compare import compare as compare_images
+    from ..compare import error_image
+    from ..image import read_image, write_png
+
+    a, b = read_image(reference), read_image(test)
+    mask = None if mask_path is None else read_image(mask_path)
+    labels = (reference.name, test.name)
+    result = compare_images(a, b, mask, block, labels)
+    if output is not None:
+        write_png(output, error_image(a, b, mask, block, limit, labels), method="none")
+    if as_json:
+        report = {"reference": str(reference), "test": str(test),
+                  "mask": None if mask_path is None else str(mask_path),
+                  "size": [a.shape[1], a.shape[0]], **result,
+                  "error_image": None if output is None else str(output)}
+        click.echo(json.dumps(_json_ready(report), indent=1))
+        return
+    unit = f"{block}x{block} blocks" if block > 1 else "pixels"
+    click.echo(f"A (reference): {reference}  {a.shape[1]}x{a.shape[0]}, {result['pixels']} object {unit}")
+    click.echo(f"B (test):      {test}")
+    click.echo(f"{'':<22}{'R':>12}{'G':>12}{'B':>12}")
+    for key, label in _ROWS:
+        click.echo(f"{label:<22}" + "".join(f"{v:>12.5g}" for v in result[key]))
+    click.echo(f"{'FLIP mean':<22}{result['flip_mean']:>12.5g}")
+    if output is not None:
+        click.echo(f"error image: {output} (relative luminance error, +-{limit:g})")
