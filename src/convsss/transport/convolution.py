@@ -190,7 +190,8 @@ class ConvolutionTransport(Transport):
             at_layers = profile(self.dz * np.arange(self.n_layers))
             self.keep = at_layers >= self.threshold * profile(0.0)[None, :]
         with self.timings("forward_fft"):
-            self._phi_hat = scipy.fft.rfft2(grid[self.source_layers], workers=workers)
+            sources = grid if len(self.source_layers) == self.n_layers else grid[self.source_layers]
+            self._phi_hat = scipy.fft.rfft2(sources, workers=workers, overwrite_x=True)
         del grid
         self._exitance_layers = np.zeros((self.n_layers, 3) + self.grid_shape, dtype=np.float32)
         self.computed = np.zeros(self.n_layers, dtype=bool)
