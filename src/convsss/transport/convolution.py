@@ -51,27 +51,55 @@ def _layer_of(z, z0, dz, n_layers):
 
 
 @numba.njit(cache=True)
-def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
-    """Add each sample's flux to 4 cells x 2 layers of ``grid`` (n_l, 3, Py, Px), serially (deterministic)."""
-    height, width = grid.shape[2], grid.shape[3]
+def _bucket_by_layer(view, z0, dz, n_layers):
+    """Counting sort of the samples by their lower bracketing layer: ``order`` and bucket ``starts`` (n_l + 1)."""
+    lower = np.empty(view.shape[0], dtype=np.int64)
+    starts = np.zeros(n_layers + 1, dtype=np.int64)
     for k in range(view.shape[0]):
-        gx = (view[k, 0] - x0) / h
-        gy = (view[k, 1] - y0) / h
-        i = min(max(int(np.floor(gx)), 0), width - 2)
-        j = min(max(int(np.floor(gy)), 0), height - 2)
-        fx = gx - i
-        fy = gy - j
-        lo, w_hi = _layer_of(view[k, 2], z0, dz, n_layers)
-        if half and n_layers > 1:
-            w_hi = 0.5
-        for dl in range(2 if n_layers > 1 else 1):
-            wl = w_hi if dl == 1 else 1.0 - w_hi
-            for dj in range(2):
-                wy = fy if dj == 1 else 1.0 - fy
-                for di in range(2):
-                    w = wl * wy * (fx if di == 1 else 1.0 - fx)
-                    for c in range(3):
-                        grid[lo + dl, c, j + dj, i + di] += w * flux[k, c]
+        lower[k], _ = _layer_of(view[k, 2], z0, dz, n_layers)
+        starts[lower[k] + 1] += 1
+    for layer in range(n_layers):
+        starts[layer + 1] += starts[layer]
+    order = np.empty(view.shape[0], dtype=np.int64)
+    fill = starts[:-1].copy()
+    for k in range(view.shape[0]):
+        order[fill[lower[k]]] = k
+        fill[lower[k]] += 1
+    return order, starts
+
+
+@numba.njit(parallel=True, cache=True)
+def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
+    """Add each sample's flux to 4 cells x 2 layers of ``grid`` (n_l, 3, Py, Px).
+
+    One thread per output layer, each reading the samples bucketed below and above it in a fixed order, so the
+    result is the same bit for bit whatever the thread count.
+    """
+    height, width = grid.shape[2], grid.shape[3]
+    order, starts = _bucket_by_layer(view, z0, dz, n_layers)
+    for layer in numba.prange(n_layers):
+        for upper in range(2 if n_layers > 1 else 1):
+            lower = layer - upper  # samples whose lower layer is `lower` reach `layer` as their upper one
+            if lower < 0 or lower >= max(n_layers - 1, 1):
+                continue
+            for idx in range(starts[lower], starts[lower + 1]):
+                k = order[idx]
+                gx = (view[k, 0] - x0) / h
+                gy = (view[k, 1] - y0) / h
+                i = min(max(int(np.floor(gx)), 0), width - 2)
+                j = min(max(int(np.floor(gy)), 0), height - 2)
+                fx = gx - i
+                fy = gy - j
+                _, w_hi = _layer_of(view[k, 2], z0, dz, n_layers)
+                if half and n_layers > 1:
+                    w_hi = 0.5
+                wl = w_hi if upper == 1 else 1.0 - w_hi
+                for dj in range(2):
+                    wy = fy if dj == 1 else 1.0 - fy
+                    for di in range(2):
+                        w = wl * wy * (fx if di == 1 else 1.0 - fx)
+                        for c in range(3):
+                            grid[layer, c, j + dj, i + di] += w * flux[k, c]
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
