@@ -11,4 +11,17 @@ from .materials import Material, catalog, material
 from .profiles import DipoleProfile, Profile, TabulatedProfile
 
 __all__ = ["ConvsssError", "DipoleProfile", "Material", "Profile", "TabulatedProfile", "catalog", "material",
-           "__version__"]
+           "register", "__version__"]
+
+
+def register():
+    """Register the ``convsss`` integrator with Mitsuba (imports Mitsuba only now); returns the mitsuba module.
+
+    Call it before loading a scene that names ``<integrator type="convsss">``::
+
+        mi = convsss.register()
+        image = mi.render(mi.load_file("scene.xml"))
+    """
+    from .scene import register as _register
+
+    return _register()

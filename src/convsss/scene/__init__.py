@@ -1,0 +1,27 @@
+"""The Mitsuba side of convsss: scenes in, images out (DESIGN.md: scene -> samples -> transport -> shading).
+
+- :mod:`.params`: the integrator's parameters, checked;
+- :mod:`.materials`: a material written as a Mitsuba medium (``sigma_t / scale / albedo``) and boundary;
+- :mod:`.objects`: translucent objects found in a loaded scene;
+- :mod:`.irradiance`: surface samples and their irradiance (paper Eq. 2);
+- :mod:`.shading`: camera rays (paper Eq. 7 plus boundary reflection, path tracing elsewhere);
+- :mod:`.integrator`: the ``convsss`` integrator and :func:`register`;
+- :mod:`.quick`: a scene around a mesh (camera, key light, back light, floor);
+- :mod:`.loading`: scene files with the integrator replaced and the film resized;
+- :mod:`.reference`: the same scene with Mitsuba's ``volpathmis``, in passes;
+- :mod:`.xmlwriter`: scene dictionaries written as Mitsuba XML.
+
+Only :mod:`.params` and :mod:`.materials` are imported here; the others load Mitsuba when imported.
+"""
+
+from .materials import boundary_dict, medium_dict, medium_parameters, translucent
+from .params import RenderParams
+
+__all__ = ["RenderParams", "boundary_dict", "medium_dict", "medium_parameters", "register", "translucent"]
+
+
+def register():
+    """Register the ``convsss`` integrator with Mitsuba; returns the mitsuba module."""
+    from .integrator import register as _register
+
+    return _register()

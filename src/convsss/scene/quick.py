@@ -1,0 +1,142 @@
+"""A scene around one mesh, for rendering without writing a scene: camera, key light, back light, optional floor.
+
+Layout (scene units are mm, y is up): the mesh is scaled so that its largest side is ``size_mm``, centred on the
+y axis and standing on ``y = 0``. With ``R`` the radius of its bounding sphere and ``c`` its centre:
+
+- camera: perspective, 30° horizontal field of view, at ``c + d (0, 0.25, 1)/|.|`` looking at ``c``, with ``d`` so
+  that the bounding sphere fills about 80 % of the frame;
+- key light: a point light high on the camera's left, irradiance about 1 at the object;
+- back light: a point light behind the object, slightly above and to the right, about 3 times stronger: the light
+  that crosses thin parts (ears, edges) shows the translucency;
+- floor (optional): a large grey diffuse rectangle at ``y = 0``.
+
+The object gets the material's medium and a boundary (see :mod:`.materials`).
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..backend import load_mitsuba
+from ..errors import ConvsssError
+from .materials import translucent
+
+MESH_TYPES = {".obj": "obj", ".ply": "ply", ".serialized": "serialized"}
+FOV_DEG = 30.0
+
+
+def demo_mesh():
+    """Path of the bundled Stanford bunny (watertight; credits in ``data/meshes/CREDITS.md``)."""
+    from importlib import resources
+
+    return Path(str(resources.files("convsss").joinpath("data", "meshes", "bunny.obj")))
+
+
+def mesh_dict(path):
+    """A Mitsuba shape dictionary for a mesh file (``.obj``, ``.ply``, ``.serialized``), checked to exist."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConvsssError(f"mesh file {str(path)!r} does not exist")
+    kind = MESH_TYPES.get(path.suffix.lower())
+    if kind is None:
+        raise ConvsssError(f"mesh file {str(path)!r} has an unknown format: use {', '.join(MESH_TYPES)}")
+    return {"type": kind, "filename": str(path.resolve())}
+
+
+def mesh_bounds(path):
+    """(min, max) corners of the mesh in its own units."""
+    mi = load_mitsuba()
+    try:
+        shape = mi.load_dict(mesh_dict(path))
+    except ConvsssError:
+        raise
+    except Exception as error:
+        raise ConvsssError(f"cannot read mesh {str(path)!r}: {' '.join(str(error).split())}") from None
+    box = shape.bbox()
+    return np.array(list(box.min), dtype=np.float64), np.array(list(box.max), dtype=np.float64)
+
+
+def _matrix(m):
+    mi = load_mitsuba()
+    return mi.ScalarTransform4f(np.asarray(m, dtype=np.float64).tolist())
+
+
+def _look_at(origin, target, up=(0.0, 1.0, 0.0)):
+    mi = load_mitsuba()
+    return mi.ScalarTransform4f().look_at(origin=[float(x) for x in origin], target=[float(x) for x in target],
+                                          up=list(up))
+
+
+def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=False, boundary="dielectric",
+                unit_mm=1.0, integrator=None):
+    """The scene dictionary described in the module docstring.
+
+    Parameters
+    ----------
+    mesh : path-like
+        ``.obj``, ``.ply`` or ``.serialized`` mesh (any units, y up).
+    material : Material
+        What the object is made of (e.g. ``convsss.material("wholemilk")``).
+    size_mm : float
+        Largest side of the object's bounding box, in mm.
+    width, height, spp : int
+        Film size and samples per pixel.
+    floor : bool
+        Add a grey floor under the object.
+    boundary : str
+        ``dielectric`` (default, ``int_ior`` = the material's eta), ``roughdielectric`` or ``null``.
+    unit_mm : float
+        mm per scene unit of the scene written (the medium's coefficients are converted).
+    integrator : dict, optional
+        The scene's integrator (default: ``volpathmis`` without Russian roulette, so the scene is its own
+        ground truth in plain Mitsuba).
+    """
+    size_mm = float(size_mm)
+    if not math.isfinite(size_mm) or size_mm <= 0:
+        raise ConvsssError(f"size_mm={size_mm!r} is not allowed: the object's size must be a length > 0 (mm)")
+    lo, hi = mesh_bounds(mesh)
+    extent = float(np.max(hi - lo))
+    if extent <= 0:
+        raise ConvsssError(f"mesh {str(mesh)!r} is flat or empty: it has no extent")
+    s = size_mm / unit_mm / extent
+    centre_xz = 0.5 * (lo + hi)
+    to_world = np.diag([s, s, s, 1.0])
+    to_world[:3, 3] = [-s * centre_xz[0], -s * lo[1], -s * centre_xz[2]]
+    half = 0.5 * s * (hi - lo)
+    centre = np.array([0.0, half[1], 0.0])
+    radius = float(np.linalg.norm(half))
+    aspect = width / height
+    half_fov = math.radians(FOV_DEG) / 2 if aspect >= 1 else math.atan(math.tan(math.radians(FOV_DEG) / 2) / aspect)
+    distance = radius / math.sin(half_fov) / 0.8
+    view = np.array([0.0, 0.25, 1.0]) / np.linalg.norm([0.0, 0.25, 1.0])
+    camera = centre + distance * view
+    key = centre + radius * np.array([-2.5, 3.0, 2.5])
+    back = centre + radius * np.array([0.8, 1.0, -3.0])
+
+    def intensity(position, irradiance):
+        value = float(irradiance * np.sum((position - centre) ** 2))
+        return {"type": "rgb", "value": [value, value, value]}
+
+    scene = {
+        "type": "scene",
+        "integrator": integrator or {"type": "volpathmis", "max_depth": -1, "rr_depth": 1 << 30},
+        "sensor": {
+            "type": "perspective", "fov": FOV_DEG, "fov_axis": "larger",
+            "near_clip": 0.01 * distance, "far_clip": 100.0 * distance,
+            "to_world": _look_at(camera, centre),
+            "film": {"type": "hdrfilm", "width": int(width), "height": int(height), "rfilter": {"type": "gaussian"}},
+            "sampler": {"type": "independent", "sample_count": int(spp)},
+        },
+        "object": translucent({**mesh_dict(mesh), "to_world": _matrix(to_world)}, material, unit_mm, boundary),
+        "key_light": {"type": "point", "position": key.tolist(), "intensity": intensity(key, 1.0)},
+        "back_light": {"type": "point", "position": back.tolist(), "intensity": intensity(back, 3.0)},
+    }
+    if floor:
+        scene["floor"] = {
+            "type": "rectangle",
+            "to_world": _matrix(np.array([[20 * radius, 0, 0, 0], [0, 0, 20 * radius, 0],
+                                          [0, -20 * radius, 0, 0], [0, 0, 0, 1.0]])),
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}},
+        }
+    return scene

@@ -1,0 +1,59 @@
+"""Ground truth for a scene: the same scene rendered with Mitsuba's volumetric path tracer ``volpathmis``.
+
+``volpathmis`` handles a different ``sigma_t`` per channel; Russian roulette is switched off (``rr_depth`` huge; at
+albedo ~1 it fires fireflies) and paths are unbounded (``max_depth = -1``), so the estimate is unbiased. The render
+runs in passes of ``pass_spp`` samples with different seeds; after each pass the running mean is handed to a
+callback, so a long run can be stopped and what it has so far is kept.
+
+Mind (DESIGN.md): a point light behind a smooth dielectric cannot be reached by a unidirectional path tracer, so
+such a scene renders black here; use a ``null`` boundary with point lights, or area / environment lights.
+"""
+
+import math
+
+import numpy as np
+
+from ..backend import load_mitsuba
+from ..errors import ConvsssError
+
+#: Russian roulette starts at this depth, i.e. never in practice.
+NO_RUSSIAN_ROULETTE = 1 << 30
+
+
+def reference_integrator():
+    """A ``volpathmis`` integrator without Russian roulette and with unbounded paths."""
+    mi = load_mitsuba()
+    return mi.load_dict({"type": "volpathmis", "max_depth": -1, "rr_depth": NO_RUSSIAN_ROULETTE})
+
+
+def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
+    """Render ``scene`` with ``spp`` samples per pixel of ``volpathmis``, in passes; returns the mean (H, W, 3).
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+    spp : int
+        Total samples per pixel.
+    pass_spp : int
+        Samples per pixel of each pass (the last one may have fewer).
+    seed : int
+        Pass ``k`` uses the seed ``seed * 1_000_003 + k``: the same seed gives the same image.
+    on_pass : callable, optional
+        ``on_pass(mean_image, spp_done, pass_index, n_passes)`` after each pass (e.g. to save it).
+    """
+    spp, pass_spp = int(spp), int(pass_spp)
+    if spp < 1 or pass_spp < 1:
+        raise ConvsssError(f"spp={spp} and pass_spp={pass_spp} are not allowed: both must be >= 1")
+    mi = load_mitsuba()
+    integrator = reference_integrator()
+    n_passes = math.ceil(spp / pass_spp)
+    total, done = None, 0
+    for k in range(n_passes):
+        this = min(pass_spp, spp - done)
+        image = np.array(mi.render(scene, integrator=integrator, spp=this, seed=seed * 1_000_003 + k),
+                         dtype=np.float64)[..., :3]
+        total = image * this if total is None else total + image * this
+        done += this
+        if on_pass is not None:
+            on_pass(total / done, done, k, n_passes)
+    return total / done

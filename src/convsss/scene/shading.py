@@ -1,0 +1,249 @@
+"""Shading of camera rays: subsurface exitance on translucent objects, path tracing everywhere else.
+
+A path vertex on a **translucent** object adds (paper Eq. 7)
+
+    L_sss = (1/pi) F_t(eta, w_o) M(x),
+
+with ``M`` the transport's exitance at ``x`` (mm) and ``F_t`` the Fresnel transmittance towards the viewer, plus the
+boundary's reflection, by the integrator's ``specular`` mode:
+
+- ``bsdf``: the scene's dielectric restricted to its reflection lobe: direct light by emitter sampling (for a rough
+  boundary) and a reflected ray (weight ``F_r`` for a smooth one) that continues the path, up to ``max_depth``;
+- ``phong``: the paper's highlight, a normalized Phong lobe ``F_r(eta, w_l) (e+2)/(2 pi) cos^e(alpha)`` lit by
+  emitter sampling (``alpha`` between the mirrored light direction and the viewer);
+- ``none``: nothing.
+
+Light that refracts into the object is already in ``M``, so a path ends there. Every **other** shape is shaded by
+an ordinary unidirectional path tracer: emitter sampling and BSDF sampling combined by the power heuristic, Russian
+roulette from ``rr_depth``, so floors, shadows and backgrounds look as in Mitsuba's ``path``. A bounce that reaches
+a translucent object picks up its ``L_sss`` too.
+
+The loop is a wavefront: each bounce is one batch of Dr.Jit kernels over the paths still alive (compacted), with
+one numpy call per object for ``M`` (any transport works, whatever it is written in).
+"""
+
+import drjit as dr
+import numpy as np
+
+from ..backend import load_mitsuba
+from ..fresnel import fresnel_transmittance
+
+mi = load_mitsuba()
+
+MAX_EMITTERS_SUMMED = 8
+
+
+def _power(a, b):
+    a2, b2 = a * a, b * b
+    w = a2 / (a2 + b2)
+    return dr.select(dr.isfinite(w), w, 0.0)
+
+
+def _to_numpy3(v):
+    return dr.ravel(v).numpy().reshape(-1, 3)
+
+
+def _color(array):
+    """(K, 3) numpy -> mi.Color3f (copied, so numpy buffers may be reused)."""
+    a = np.ascontiguousarray(np.asarray(array, dtype=np.float32).T)
+    return mi.Color3f(mi.Float(a[0].copy()), mi.Float(a[1].copy()), mi.Float(a[2].copy()))
+
+
+class Shader:
+    """Shades ray batches of one scene whose translucent objects have transports.
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+    objects : list of TranslucentObject
+    transports : list
+        One transport per object (``exitance(points_mm) -> (K, 3)``).
+    params : RenderParams
+    """
+
+    def __init__(self, scene, objects, transports, params):
+        self.scene, self.objects, self.transports, self.params = scene, objects, transports, params
+        self.shape_object = {obj.shape_index: k for k, obj in enumerate(objects)}
+        self.ctx = mi.BSDFContext()
+        self.ctx_reflect = mi.BSDFContext()
+        self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
+        self.lookups = 0
+        #: Up to this many emitters, direct light samples each of them (else one chosen by the scene).
+        self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
+
+    # --- per-bounce pieces ----------------------------------------------------------------------------------------
+    def _classify(self, si):
+        """Per lane: index of the translucent object hit (-1: none) and its eta, as numpy arrays."""
+        ids = dr.reinterpret_array(mi.UInt32, si.shape).numpy()
+        valid = si.is_valid().numpy()
+        which = np.full(len(ids), -1, dtype=np.int64)
+        for index, k in self.shape_object.items():
+            which[valid & (ids == index)] = k
+        eta = np.ones(len(ids), dtype=np.float32)
+        for k, obj in enumerate(self.objects):
+            eta[which == k] = obj.eta
+        return which, eta
+
+    def _subsurface(self, si, which, throughput):
+        """Paper Eq. 7 on the lanes that hit translucent objects: ``(lanes, beta (1/pi) F_t(eta, w_o) M(x_o))``.
+
+        ``M`` comes from each object's transport (numpy, positions in mm); only those lanes are converted.
+        """
+        hit = np.flatnonzero(which >= 0)
+        if len(hit) == 0:
+            return hit, None
+        chosen = mi.UInt32(hit.astype(np.uint32))
+        points = _to_numpy3(dr.gather(mi.Point3f, si.p, chosen)).astype(np.float64) * self.params.unit_mm
+        cos_o = np.abs(dr.gather(mi.Float, si.wi.z, chosen).numpy())
+        beta = _to_numpy3(dr.gather(mi.Color3f, throughput, chosen))
+        value = np.zeros((len(hit), 3))
+        for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
+            mask = which[hit] == k
+            if np.any(mask):
+                exitance = transport.exitance(points[mask])
+                transmit = fresnel_transmittance(obj.eta, cos_o[mask])
+                value[mask] = beta[mask] * exitance * (transmit / np.pi)[:, None]
+                self.lookups += int(mask.sum())
+        return hit, value
+
+    def _phong(self, si, ray_d, eta, ds, light):
+        """The paper's Phong highlight from one emitter sample: ``F_r (e+2)/(2 pi) cos^e(alpha) cos_l L/pdf``."""
+        wo = -ray_d
+        n = mi.Vector3f(si.sh_frame.n)
+        n = dr.select(dr.dot(n, wo) < 0, -n, n)
+        cos_l = dr.dot(n, ds.d)
+        mirrored = 2.0 * cos_l * n - ds.d
+        cos_a = dr.maximum(dr.dot(mirrored, wo), 0.0)
+        e = self.params.phong_exponent
+        lobe = mi.fresnel(dr.abs(cos_l), eta)[0] * (e + 2.0) / (2.0 * dr.pi) * dr.power(cos_a, e)
+        return dr.select(cos_l > 0, light * lobe * cos_l, 0.0)
+
+    def _light_samples(self, si, u, active):
+        """Emitter samples ``(ds, L/pdf)`` at ``si``: one per emitter when there are few (no selection noise), else
+        one emitter picked by the scene (as Mitsuba's ``path`` does)."""
+        if self.per_emitter:
+            out = []
+            for emitter in self.scene.emitters():
+                ds, light = emitter.sample_direction(si, u, active)
+                visible = active & (ds.pdf > 0)
+                visible &= ~self.scene.ray_test(si.spawn_ray_to(ds.p), visible)
+                out.append((ds, dr.select(visible, light, 0.0)))
+            return out
+        return [self.scene.sample_emitter_direction(si, u, True, active)]
+
+    def _direct(self, si, bsdf, ray_d, eta, translucent, opaque, alive, ds, light):
+        """One emitter sample's contribution: the BSDF (power-heuristic MIS) on opaque shapes; on translucent ones the
+        boundary's reflection lobe (``bsdf``) or the Phong highlight (``phong``)."""
+        wo_local = si.to_local(ds.d)
+        value, pdf = bsdf.eval_pdf(self.ctx, si, wo_local, opaque)
+        value = dr.select(opaque, value, 0.0)
+        pdf = dr.select(opaque, pdf, 0.0)
+        if self.params.specular == "bsdf":
+            reflect = alive & translucent
+            value_r, pdf_r = bsdf.eval_pdf(self.ctx_reflect, si, wo_local, reflect)
+            value = dr.select(reflect, value_r, value)
+            pdf = dr.select(reflect, pdf_r, pdf)
+        result = light * value * dr.select(ds.delta, 1.0, _power(ds.pdf, pdf))
+        if self.params.specular == "phong":
+            result = dr.select(translucent, self._phong(si, ray_d, eta, ds, light), result)
+        return dr.select(alive, result, 0.0)
+
+    # --- the wavefront loop -----------------------------------------------------------------------------------------
+    def shade(self, sampler, ray):
+        """Radiance (mi.Color3f) and hit mask (mi.Bool) for a wavefront of camera rays, drawing from ``sampler``."""
+        scene, params = self.scene, self.params
+        n_lanes = dr.width(ray.o)
+        total = dr.zeros(mi.Color3f, n_lanes)
+        lane = dr.arange(mi.UInt32, n_lanes)
+        lane_np = np.arange(n_lanes)
+        ray_o, ray_d = mi.Point3f(ray.o), mi.Vector3f(ray.d)
+        throughput = mi.Color3f(1.0)
+        prev_p = mi.Point3f(ray.o)
+        prev_n = mi.Vector3f(0.0)
+        prev_pdf = mi.Float(1.0)
+        prev_delta = mi.Bool(True)
+        max_depth = params.max_depth if params.max_depth > 0 else 2**31
+        valid = None
+        depth = 0
+        while len(lane_np) and depth < max_depth:
+            si = scene.ray_intersect(mi.Ray3f(ray_o, ray_d))
+            dr.eval(si)
+            if valid is None:
+                valid = si.is_valid()
+            contribution = self._emission(si, prev_p, prev_n, prev_pdf, prev_delta, depth) * throughput
+            if depth + 1 >= max_depth:
+                dr.scatter_add(total, contribution, lane)
+                break
+            which, eta_np = self._classify(si)
+            translucent = mi.Bool(which >= 0)
+            eta = mi.Float(eta_np)
+            # Paper Eq. 7: (1/pi) F_t(eta, w_o) M(x_o) on translucent objects.
+            hit, sss = self._subsurface(si, which, throughput)
+            if len(hit):
+                dr.scatter_add(total, _color(sss), mi.UInt32(lane_np[hit].astype(np.uint32)))
+
+            alive = si.is_valid()
+            bsdf = si.bsdf(mi.Ray3f(ray_o, ray_d))
+            u_light = dr.gather(mi.Point2f, sampler.next_2d(), lane)
+            u_lobe = dr.gather(mi.Float, sampler.next_1d(), lane)
+            u_dir = dr.gather(mi.Point2f, sampler.next_2d(), lane)
+            u_rr = dr.gather(mi.Float, sampler.next_1d(), lane)
+
+            # Direct light by emitter sampling.
+            opaque = alive & ~translucent
+            direct_light = dr.zeros(mi.Color3f, dr.width(si.p))
+            for ds, light in self._light_samples(si, u_light, alive):
+                direct_light += self._direct(si, bsdf, ray_d, eta, translucent, opaque, alive, ds, light)
+            contribution += throughput * direct_light
+
+            # Continue by BSDF sampling (translucent objects: their reflection lobe only, in bsdf mode).
+            bs, weight = bsdf.sample(self.ctx, si, u_lobe, u_dir, opaque)
+            continues = opaque
+            if params.specular == "bsdf":
+                reflect = alive & translucent
+                bs_r, weight_r = bsdf.sample(self.ctx_reflect, si, u_lobe, u_dir, reflect)
+                bs = dr.select(reflect, bs_r, bs)
+                weight = dr.select(reflect, weight_r, weight)
+                continues = alive & (opaque | translucent)
+            throughput = throughput * dr.select(continues, weight, 0.0)
+            continues &= (bs.pdf > 0) & (dr.max(throughput) > 0)
+            if depth + 1 >= params.rr_depth:
+                q = dr.minimum(dr.max(throughput), 0.95)
+                continues &= u_rr < q
+                throughput = throughput / dr.select(continues, q, 1.0)
+
+            dr.scatter_add(total, contribution, lane)
+            dr.eval(total, throughput, continues)
+            keep = continues.numpy()
+            if not keep.any():
+                break
+            chosen = mi.UInt32(np.flatnonzero(keep).astype(np.uint32))
+            direction = si.to_world(bs.wo)
+            next_o = si.spawn_ray(direction).o
+            ray_o = dr.gather(mi.Point3f, next_o, chosen)
+            ray_d = dr.gather(mi.Vector3f, direction, chosen)
+            throughput = dr.gather(mi.Color3f, throughput, chosen)
+            prev_p = dr.gather(mi.Point3f, si.p, chosen)
+            prev_n = dr.gather(mi.Vector3f, mi.Vector3f(si.n), chosen)
+            prev_pdf = dr.gather(mi.Float, bs.pdf, chosen)
+            prev_delta = dr.gather(mi.Bool, mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta), chosen)
+            lane = dr.gather(mi.UInt32, lane, chosen)
+            lane_np = lane_np[keep]
+            dr.eval(ray_o, ray_d, throughput, prev_p, prev_n, prev_pdf, prev_delta, lane)
+            depth += 1
+        return total, valid
+
+    def _emission(self, si, prev_p, prev_n, prev_pdf, prev_delta, depth):
+        """Emitted radiance seen at ``si``, MIS-weighted against emitter sampling after a non-delta BSDF sample."""
+        emitter = si.emitter(self.scene)
+        radiance = emitter.eval(si)
+        if depth == 0:
+            return radiance
+        prev = dr.zeros(mi.Interaction3f, dr.width(prev_p))
+        prev.p, prev.n = prev_p, prev_n
+        ds = mi.DirectionSample3f(self.scene, si, prev)
+        if self.per_emitter:
+            pdf_light = emitter.pdf_direction(prev, ds)
+        else:
+            pdf_light = self.scene.pdf_emitter_direction(prev, ds)
+        return radiance * dr.select(prev_delta, 1.0, _power(prev_pdf, pdf_light))

@@ -1,0 +1,76 @@
+import drjit as dr
+import numpy as np
+import pytest
+
+from convsss.fresnel import fresnel_transmittance
+
+
+@pytest.fixture(scope="module")
+def irr(mi):
+    from convsss.scene import irradiance
+
+    return irradiance
+
+
+def _points(irr, scene, count=2000, seed=1):
+    p, n, size = irr.sample_surface(scene.shapes()[0], count, seed)
+    return p, n, size, dr.ravel(p).numpy().reshape(-1, 3).astype(np.float64)
+
+
+def test_stratified_points_cover_the_sphere_uniformly(mi, irr):
+    scene = mi.load_dict({"type": "scene", "s": {"type": "sphere", "radius": 1.0}})
+    _, n, size, p = _points(irr, scene, 1000)
+    assert size == 32 * 32
+    np.testing.assert_allclose(np.linalg.norm(p, axis=1), 1.0, atol=1e-5)
+    normals = dr.ravel(n).numpy().reshape(-1, 3)
+    np.testing.assert_allclose(normals, p, atol=1e-4)
+    # Uniform on a sphere: z is uniform in [-1, 1] (Archimedes); stratification keeps every bin close to its share.
+    counts = np.histogram(p[:, 2], bins=8, range=(-1, 1))[0]
+    assert np.all(np.abs(counts - size / 8) < 0.1 * size / 8)
+
+
+@pytest.mark.parametrize("eta", [1.0, 1.4])
+def test_point_and_spot_lights_are_exact(mi, irr, eta):
+    light = {"type": "point", "position": [0, 0, 5], "intensity": {"type": "rgb", "value": [25, 25, 25]}}
+    scene = mi.load_dict({"type": "scene", "s": {"type": "sphere"}, "l": light})
+    p, n, _, pts = _points(irr, scene)
+    e = irr.surface_irradiance(scene, p, n, eta, 4, seed=0)
+    d = np.array([0, 0, 5.0]) - pts
+    r = np.linalg.norm(d, axis=1)
+    cos = np.clip(np.einsum("ij,ij->i", pts, d) / r, 0, None)
+    expected = 25 * cos / r**2 * fresnel_transmittance(eta, cos)
+    np.testing.assert_allclose(e, np.repeat(expected[:, None], 3, axis=1), atol=2e-5)
+
+
+def test_shadows_count(mi, irr):
+    light = {"type": "directional", "direction": [0, 0, -1], "irradiance": {"type": "rgb", "value": [1, 1, 1]}}
+    blocker = {"type": "sphere", "center": [0, 0, 3], "radius": 2.0}
+    scene = mi.load_dict({"type": "scene", "s": {"type": "sphere"}, "b": blocker, "l": light})
+    p, n, _, pts = _points(irr, scene)
+    e = irr.surface_irradiance(scene, p, n, 1.0, 4, seed=0)
+    assert np.all(e == 0)
+
+
+def test_environment_gives_pi_times_radiance(mi, irr):
+    env = {"type": "constant", "radiance": {"type": "rgb", "value": [1.0, 0.5, 0.25]}}
+    scene = mi.load_dict({"type": "scene", "s": {"type": "sphere"}, "e": env})
+    p, n, _, _ = _points(irr, scene)
+    e = irr.surface_irradiance(scene, p, n, 1.0, 16, seed=3)
+    np.testing.assert_allclose(e.mean(axis=0), np.pi * np.array([1.0, 0.5, 0.25]), rtol=0.02)
+    again = irr.surface_irradiance(scene, p, n, 1.0, 16, seed=3)
+    np.testing.assert_array_equal(e, again)
+
+
+def test_area_light_matches_point_light_far_away(mi, irr):
+    """A small square lamp far away irradiates like a point light of intensity L * area."""
+    T = mi.ScalarTransform4f
+    lamp = {"type": "rectangle", "to_world": T().translate([0, 0, 20]).rotate([1, 0, 0], 180).scale(0.5),
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [400, 400, 400]}}}
+    scene = mi.load_dict({"type": "scene", "s": {"type": "sphere"}, "l": lamp})
+    p, n, _, pts = _points(irr, scene)
+    e = irr.surface_irradiance(scene, p, n, 1.0, 16, seed=0)[:, 0]
+    d = np.array([0, 0, 20.0]) - pts
+    r = np.linalg.norm(d, axis=1)
+    cos_surface = np.clip(np.einsum("ij,ij->i", pts, d) / r, 0, None)
+    expected = 400 * 1.0 * cos_surface * (d[:, 2] / r) / r**2
+    assert e.sum() == pytest.approx(expected.sum(), rel=0.02)

@@ -1,0 +1,33 @@
+import pytest
+
+from convsss.errors import ConvsssError
+from convsss.scene.params import RenderParams
+
+
+def test_defaults_are_the_papers():
+    p = RenderParams()
+    assert (p.layers, p.threshold, p.downsample, p.transport, p.splat) == (8, 0.001, 1.0, "convolution", "linear")
+    assert p.integrator_dict()["type"] == "convsss"
+
+
+def test_from_mapping_takes_only_known_names():
+    p = RenderParams.from_properties({"layers": 4, "downsample": 0.5, "unrelated": 1})
+    assert p.layers == 4 and p.downsample == 0.5
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"layers": 1}, "layers=1"),
+    ({"layers": 2.5}, "whole number"),
+    ({"threshold": -0.1}, "threshold=-0.1"),
+    ({"downsample": 0.3}, "downsample=0.3"),
+    ({"transport": "fft"}, "transport='fft'"),
+    ({"specular": "glossy"}, "specular='glossy'"),
+    ({"splat": "box"}, "splat='box'"),
+    ({"unit_mm": 0}, "unit_mm=0"),
+    ({"max_depth": 0}, "max_depth=0"),
+    ({"irradiance_samples": 0}, "irradiance_samples=0"),
+    ({"profile": "/nonexistent/profile.csv"}, "profile file"),
+])
+def test_bad_values_say_what_is_allowed(kwargs, message):
+    with pytest.raises(ConvsssError, match=message):
+        RenderParams(**kwargs)
