@@ -27,7 +27,7 @@ def bench_transport_command(quick, runs, as_json):
     Stages: splat, kernels (cold, then cached), forward FFT, mixing, inverse FFT, lookup. The floor is the same
     count and size of rfft2/irfft2 alone; ratio = cached-kernel total / floor.
     """
-    from ..benchmarks import bench_transport, transport_table
+    from ..bench.transport import bench_transport, transport_table
 
     if quick:
         rows = bench_transport(grids=(512,), layer_counts=(8,), thresholds=(0.001,), runs=runs or 3,

@@ -2,7 +2,7 @@ import json
 
 from click.testing import CliRunner
 
-from convsss.benchmarks import STAGES, fft_floor
+from convsss.bench.transport import STAGES, fft_floor
 from convsss.cli import cli
 
 

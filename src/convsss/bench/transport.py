@@ -12,10 +12,10 @@ import numpy as np
 import scipy.fft
 from tqdm import tqdm
 
-from .materials import material
-from .samples import IrradianceSamples, ViewFrame
-from .transport.convolution import ConvolutionTransport
-from .transport.kernels import CACHE
+from ..materials import material
+from ..samples import IrradianceSamples, ViewFrame
+from ..transport.convolution import ConvolutionTransport
+from ..transport.kernels import CACHE
 
 STAGES = ("splat", "kernels_cold", "kernels_cached", "forward_fft", "mixing", "inverse_fft", "lookup")
 
