@@ -22,27 +22,31 @@ def profile_lookup(r, r_scale, ds, table, c):
     return (1.0 - w) * table[k, c] + w * table[k + 1, c]
 
 
+@numba.njit(inline="always", fastmath=True)
+def sum_samples(px, py, pz, positions, flux, first, last, r_scale, ds, table, r_max2):
+    """``sum_{i in [first, last)} R_d(|p - x_i|) Phi_i`` per channel for the point ``(px, py, pz)``."""
+    m0 = m1 = m2 = 0.0
+    for i in range(first, last):
+        dx = positions[i, 0] - px
+        dy = positions[i, 1] - py
+        dz = positions[i, 2] - pz
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 >= r_max2:
+            continue
+        r = np.sqrt(d2)
+        m0 += profile_lookup(r, r_scale, ds, table, 0) * flux[i, 0]
+        m1 += profile_lookup(r, r_scale, ds, table, 1) * flux[i, 1]
+        m2 += profile_lookup(r, r_scale, ds, table, 2) * flux[i, 2]
+    return m0, m1, m2
+
+
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def _direct_sum(points, positions, flux, r_scale, ds, table, r_max):
     out = np.zeros((points.shape[0], 3))
-    r_max2 = r_max * r_max
     for k in numba.prange(points.shape[0]):
-        px, py, pz = points[k, 0], points[k, 1], points[k, 2]
-        m0 = m1 = m2 = 0.0
-        for i in range(positions.shape[0]):
-            dx = positions[i, 0] - px
-            dy = positions[i, 1] - py
-            dz = positions[i, 2] - pz
-            d2 = dx * dx + dy * dy + dz * dz
-            if d2 >= r_max2:
-                continue
-            r = np.sqrt(d2)
-            m0 += profile_lookup(r, r_scale, ds, table, 0) * flux[i, 0]
-            m1 += profile_lookup(r, r_scale, ds, table, 1) * flux[i, 1]
-            m2 += profile_lookup(r, r_scale, ds, table, 2) * flux[i, 2]
-        out[k, 0] = m0
-        out[k, 1] = m1
-        out[k, 2] = m2
+        m = sum_samples(points[k, 0], points[k, 1], points[k, 2], positions, flux, 0, positions.shape[0],
+                        r_scale, ds, table, r_max * r_max)
+        out[k, 0], out[k, 1], out[k, 2] = m
     return out
 
 

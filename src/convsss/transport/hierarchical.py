@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import ConvsssError
 from .base import Transport
-from .exact import profile_lookup
+from .exact import profile_lookup, sum_samples
 from .octree import Octree
 
 #: Query points per parallel work item (one traversal stack each).
@@ -67,17 +67,11 @@ def _traverse(points, epsilon, r_scale, ds, table, r_max, position, flux, start,
                 if gap2 >= r_max2:
                     continue  # step 1: out of the profile's reach
                 if child_count[node] == 0:  # step 2: a leaf, summed exactly
-                    for i in range(start[node], end[node]):
-                        dx = position[i, 0] - px
-                        dy = position[i, 1] - py
-                        dz = position[i, 2] - pz
-                        d2 = dx * dx + dy * dy + dz * dz
-                        if d2 >= r_max2:
-                            continue
-                        r = np.sqrt(d2)
-                        m0 += profile_lookup(r, r_scale, ds, table, 0) * flux[i, 0]
-                        m1 += profile_lookup(r, r_scale, ds, table, 1) * flux[i, 1]
-                        m2 += profile_lookup(r, r_scale, ds, table, 2) * flux[i, 2]
+                    l0, l1, l2 = sum_samples(px, py, pz, position, flux, start[node], end[node], r_scale, ds, table,
+                                             r_max2)
+                    m0 += l0
+                    m1 += l1
+                    m2 += l2
                     n_summed += end[node] - start[node]
                     continue
                 dx = center[node, 0] - px
