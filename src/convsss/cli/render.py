@@ -138,9 +138,11 @@ class StageProgress:
             self.bar.n = min(len(self.done), len(STAGES))
             self.bar.refresh()
 
-    def close(self):
-        self.bar.n = len(STAGES)
-        self.bar.set_postfix_str("done")
+    def close(self, failed=False):
+        """Finish the bar: all stages done, or left where it stopped, marked ``failed``."""
+        if not failed:
+            self.bar.n = len(STAGES)
+        self.bar.set_postfix_str("failed" if failed else "done")
         self.bar.close()
 
 
@@ -227,8 +229,10 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
         exr = write_exr(stem.with_suffix(".exr"), image)
         png = write_png(stem.with_suffix(".png"), image, tonemap, key, exposure)
         seconds["write"] = time.perf_counter() - t
-    finally:
-        bar.close()
+    except BaseException:
+        bar.close(failed=True)
+        raise
+    bar.close()
     seconds["total"] = time.perf_counter() - start
     stats = {"command": "render", "scene": str(scene_file) if scene_file else None,
              "quick": {"mesh": str(mesh), "material": material, "size_mm": size_mm, "floor": floor,
