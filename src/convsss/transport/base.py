@@ -30,8 +30,12 @@ class Transport:
     def exitance(self, points):
         """Radiant exitance ``M`` at ``points`` (K, 3) in mm; returns (K, 3) float64."""
         points = as_points(points, "query points")
+        self._prepare(points)
         with self.timings("lookup"):
             return self._exitance(points)
+
+    def _prepare(self, points):
+        """Work a query needs before the lookup itself (timed by the transport under its own stage names)."""
 
     def _exitance(self, points):
         raise NotImplementedError

@@ -70,13 +70,14 @@ def _bucket_by_layer(view, z0, dz, n_layers):
 
 @numba.njit(parallel=True, cache=True)
 def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
-    """Add each sample's flux to 4 cells x 2 layers of ``grid`` (n_l, 3, Py, Px).
+    """Add each sample's flux to 4 cells x 2 layers of ``grid`` (n_l, 3, Py, Px); return the flux each layer got.
 
     One thread per output layer, each reading the samples bucketed below and above it in a fixed order, so the
     result is the same bit for bit whatever the thread count.
     """
     height, width = grid.shape[2], grid.shape[3]
     order, starts = _bucket_by_layer(view, z0, dz, n_layers)
+    deposited = np.zeros(n_layers)
     for layer in numba.prange(n_layers):
         for upper in range(2 if n_layers > 1 else 1):
             lower = layer - upper  # samples whose lower layer is `lower` reach `layer` as their upper one
@@ -94,12 +95,14 @@ def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
                 if half and n_layers > 1:
                     w_hi = 0.5
                 wl = w_hi if upper == 1 else 1.0 - w_hi
+                deposited[layer] += wl * (flux[k, 0] + flux[k, 1] + flux[k, 2])
                 for dj in range(2):
                     wy = fy if dj == 1 else 1.0 - fy
                     for di in range(2):
                         w = wl * wy * (fx if di == 1 else 1.0 - fx)
                         for c in range(3):
                             grid[layer, c, j + dj, i + di] += w * flux[k, c]
+    return deposited
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
@@ -207,9 +210,9 @@ class ConvolutionTransport(Transport):
                                f"{limit / 2**30:.1f} GiB allowed: use fewer layers, a lower resolution or downsample")
         with self.timings("splat"):
             grid = np.zeros((self.n_layers, 3) + self.padded_shape, dtype=np.float32)
-            _splat(self._view, np.ascontiguousarray(samples.flux), self.x0, self.y0, self.cell, self.z0, self.dz,
-                   self.n_layers, splat == "half", grid)
-            self.source_layers = np.flatnonzero(grid.reshape(self.n_layers, -1).any(axis=1)).astype(np.int64)
+            deposited = _splat(self._view, np.ascontiguousarray(samples.flux), self.x0, self.y0, self.cell, self.z0,
+                               self.dz, self.n_layers, splat == "half", grid)
+            self.source_layers = np.flatnonzero(deposited > 0).astype(np.int64)
         with self.timings("kernels"):
             table = profile.radial_table()
             r_core = float(np.min(profile.radius_below(0.5)))
@@ -286,10 +289,13 @@ class ConvolutionTransport(Transport):
             self._exitance_layers[todo] = spatial[:, :, :height, :width]
         self.computed[todo] = True
 
+    def _prepare(self, points):
+        """The paper's visible-layer optimization: compute only the layers that bracket the query points."""
+        view = self.frame.to_view(points)
+        self.compute_layers(np.flatnonzero(_needed_layers(view, self.z0, self.dz, self.n_layers)))
+
     def _exitance(self, points):
         view = self.frame.to_view(points)
-        need = _needed_layers(view, self.z0, self.dz, self.n_layers)
-        self.compute_layers(np.flatnonzero(need))
         out = np.empty((len(points), 3))
         _lookup(view, self.x0, self.y0, self.cell, self.z0, self.dz, self.n_layers, self._exitance_layers, out)
         return out
