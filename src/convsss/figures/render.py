@@ -1,0 +1,102 @@
+"""Rendering for the figures: the ``convsss`` integrator through its Python path (as ``convsss render`` does), and
+the two references, cached: the ``exact`` transport (the direct sum over the same kind of irradiance samples) and
+``volpathmis`` (Mitsuba's volumetric path tracer, :mod:`convsss.scene.reference`).
+
+Seconds: ``seconds`` is the integrator's wall time for the whole image (irradiance samples, transport, shading of
+the camera rays); ``sss_seconds`` is the subsurface part alone, what the paper times as its "simulation of light
+transport": building the transport (splat, kernels and forward FFTs, or the octree) plus the exitance lookups of
+the visible points (mixing and inverse FFTs of the lazily computed layers included). Ray tracing is not in it.
+"""
+
+import time
+import warnings
+
+import numpy as np
+
+from ..backend import load_mitsuba
+from ..scene.params import RenderParams
+from .scenes import load, scene_dict
+
+#: Integrator parameters every figure panel shares unless it says otherwise (the paper's Phong highlights).
+BASE_PARAMS = {"specular": "phong"}
+
+
+def panel_params(method, params):
+    """:class:`RenderParams` for a panel rendered by the ``convsss`` integrator with transport ``method``."""
+    return RenderParams(**{**BASE_PARAMS, **params, "transport": method})
+
+
+def sss_seconds(stats):
+    """Seconds of subsurface transport in a render's ``integrator.stats`` (see the module docstring)."""
+    build = float(stats["seconds"].get("transport", 0.0))
+    lookups = sum(float(t["seconds"].get("lookup", 0.0)) for t in stats.get("transports", []))
+    return build + lookups
+
+
+def render_convsss(scene, params, spp, seed=0, progress=None):
+    """Render a loaded scene with the ``convsss`` integrator; returns ``(image (H, W, 3), summary dict)``.
+
+    ``summary``: ``seconds``, ``sss_seconds``, per-stage ``stage_seconds``, ``samples``, ``c`` (the paper's
+    convolutions per layer, for the convolution transport), ``pairs_per_layer``, ``layers_computed``,
+    ``mean_free_paths`` and the transport's own stats.
+    """
+    mi = load_mitsuba()
+    integrator = mi.load_dict(params.integrator_dict())
+    integrator.progress = progress
+    start = time.perf_counter()
+    image = np.array(integrator.render(scene, scene.sensors()[0], seed=seed, spp=spp), dtype=np.float64)[..., :3]
+    seconds = time.perf_counter() - start
+    stats = integrator.stats
+    transport = stats["transports"][0] if stats.get("transports") else {}
+    summary = {"seconds": seconds, "sss_seconds": sss_seconds(stats), "stage_seconds": dict(stats["seconds"]),
+               "samples": int(stats["samples"]),
+               "c": transport.get("convolutions_per_layer"), "pairs_per_layer": transport.get("pairs_per_layer"),
+               "layers_computed": transport.get("layers_computed"),
+               "mean_free_paths": stats["objects"][0].get("mean_free_paths") if stats.get("objects") else None,
+               "transport_stats": {k: v for k, v in transport.items() if k not in ("kernel_energy",)}}
+    return image, summary
+
+
+def exact_reference(spec, cache, resolution, spp, seed=0, specular="phong"):
+    """The ``exact``-transport render of ``spec`` (full-resolution samples), from ``cache`` or rendered now.
+
+    Returns ``(image, meta, hit)``.
+    """
+    params = RenderParams(**{**BASE_PARAMS, "specular": specular, "transport": "exact"})
+
+    def render():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scene = load(spec, resolution, resolution, spp)
+        image, summary = render_convsss(scene, params, spp, seed)
+        return image, {"render_seconds": summary["seconds"], "sss_seconds": summary["sss_seconds"],
+                       "samples": summary["samples"]}
+
+    settings = {"renderer": "convsss", "params": params.to_dict(), "spp": spp, "seed": seed,
+                "resolution": resolution}
+    return cache.get("exact", scene_dict(spec, resolution, resolution, spp), settings, render,
+                     f"exact transport, {spec.describe()}, {resolution}², {spp} spp")
+
+
+def path_traced_reference(spec, cache, resolution, spp, pass_spp=16, seed=0, progress=True):
+    """The ``volpathmis`` render of ``spec`` (Russian roulette off, unbounded paths), cached; ``(image, meta, hit)``."""
+    from tqdm import tqdm
+
+    from ..scene.reference import render_reference
+
+    def render():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scene = load(spec, resolution, resolution, spp)
+        bar = tqdm(total=spp, desc="  volpathmis", unit="spp", leave=False, disable=not progress)
+        try:
+            image = render_reference(scene, spp, pass_spp, seed,
+                                     on_pass=lambda _image, done, _k, _n: bar.update(done - bar.n))
+        finally:
+            bar.close()
+        return image, {}
+
+    settings = {"renderer": "volpathmis", "max_depth": -1, "rr_depth": "off", "spp": spp, "pass_spp": pass_spp,
+                "seed": seed, "resolution": resolution}
+    return cache.get("volpathmis", scene_dict(spec, resolution, resolution, spp), settings, render,
+                     f"volpathmis, {spec.describe()}, {resolution}², {spp} spp")

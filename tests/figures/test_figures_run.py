@@ -1,0 +1,85 @@
+"""`convsss figures --quick` end to end, as a user runs it, then again to check that references come from the cache.
+
+The whole quick run (every figure, 128² panels) takes about two minutes on 2 cores.
+"""
+
+import json
+import math
+import re
+
+import pytest
+from click.testing import CliRunner
+
+from convsss.cli import cli
+from convsss.figures import FIGURES
+from convsss.image import read_image
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("figures")
+    result = run("figures", "--quick", "--out", out, "--no-progress")
+    assert result.exit_code == 0, result.output
+    return out, json.loads((out / "figures.json").read_text())
+
+
+def _finite(summary):
+    return summary is not None and all(math.isfinite(summary[k]) for k in ("mre", "ratio", "rel_l2", "flip"))
+
+
+def test_every_sheet_exr_and_the_report_exist(quick_run):
+    out, data = quick_run
+    assert [f["key"] for f in data["figures"]] == list(FIGURES)
+    for figure in data["figures"]:
+        assert (out / figure["sheet"]).is_file() and (out / figure["key"] / f"{figure['key']}.png").is_file()
+        assert (out / figure["errors_sheet"]).is_file()
+        for panel in figure["panels"]:
+            image = read_image(out / panel["exr"])
+            assert image.shape == (128, 128, 3) and image.max() > 0
+            assert (out / panel["png"]).is_file()
+    assert (out / "report.md").is_file()
+    assert data["cache"]["misses"] > 0
+
+
+def test_report_has_a_row_with_finite_errors_for_every_panel(quick_run):
+    out, data = quick_run
+    report = (out / "report.md").read_text()
+    for figure in data["figures"]:
+        section = report.split(f"## {figure['title']}")[1].split("\n## ")[0]
+        rows = [line for line in section.splitlines() if line.startswith("| ") and not line.startswith("| panel")]
+        assert len(rows) == len(figure["panels"]), figure["key"]
+        for panel, row in zip(figure["panels"], rows):
+            assert row.startswith(f"| {panel['title']} |")
+            if panel["method"] in ("convolution", "hierarchical"):
+                assert _finite(panel["vs_exact"]), (figure["key"], panel["panel"])
+                assert re.search(r"\| \d+\.\d %", row), row
+                assert panel["seconds"] > 0 and panel["sss_seconds"] > 0
+            if figure["versus_pt"] and panel["method"] != "volpathmis":
+                assert _finite(panel["vs_pt"]), (figure["key"], panel["panel"])
+            if panel["method"] == "convolution":
+                assert 1 <= panel["c"] <= panel["params"].get("layers", 8)
+    assert "## Closing note: headline numbers" in report
+    assert "## Where this disagrees with the paper, explained" in report
+
+
+def test_fig2_counts_fewer_convolutions_for_the_larger_bunny_and_the_larger_threshold(quick_run):
+    _, data = quick_run
+    c = {p["panel"]: p["c"] for p in data["figures"][0]["panels"]}
+    assert c["t0-small"] == c["t0-large"] == 8
+    assert c["t0_1-large"] < c["t0_1-small"] and c["t5-large"] <= c["t0_1-large"]
+    assert c["t5-small"] < c["t0_1-small"]
+
+
+def test_second_run_reuses_the_cached_references(quick_run):
+    out, _ = quick_run
+    result = run("figures", "--quick", "--only", "fig5", "--out", out, "--no-progress")
+    assert result.exit_code == 0, result.output
+    data = json.loads((out / "figures.json").read_text())
+    assert data["cache"] == {"hits": 2, "misses": 0, "root": "cache"}
+    panels = {p["panel"]: p for p in data["figures"][0]["panels"]}
+    assert panels["exact"]["cached"] and panels["volpathmis"]["cached"]
+    assert "2 reused from `cache/`, 0 rendered" in (out / "report.md").read_text()
