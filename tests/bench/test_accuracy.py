@@ -19,8 +19,9 @@ from convsss.cli import cli
 from convsss.materials import material
 from convsss.samples import ViewFrame
 
-ROW_KEYS = {"scene", "transport", "label", "layers", "downsample", "threshold", "epsilon", "seconds", "seconds_runs",
-            "stage_median_s", "rel_l2", "mean_rel", "max_rel", "points", "samples", "pareto"}
+ROW_KEYS = {"scene", "transport", "method", "correction", "label", "layers", "downsample", "threshold", "epsilon",
+            "seconds", "seconds_runs", "stage_median_s", "rel_l2", "mean_rel", "max_rel", "points", "samples",
+            "pareto"}
 
 
 @pytest.fixture(scope="module")
@@ -31,11 +32,12 @@ def sphere_rows():
     configs = convolution_configs((2, 8), (1.0,), (0.001,)) + hierarchical_configs((0.01, 0.2, 2.0))
     frame = ViewFrame.look_at([0, 0, 100], [0, 0, 0])
     return bench_points(samples, points, material("wholemilk").profile(), frame, 20.0 / 64, configs, runs=2,
-                        scene="sphere")
+                        scene="sphere", normals=points / np.linalg.norm(points, axis=1, keepdims=True))
 
 
 def test_rows_have_their_keys_and_the_exact_sum_first(sphere_rows):
-    assert [r["transport"] for r in sphere_rows] == ["exact"] + ["convolution"] * 2 + ["hierarchical"] * 3
+    assert [r["transport"] for r in sphere_rows] == ["exact"] + ["convolution"] * 4 + ["hierarchical"] * 3
+    assert [r["method"] for r in sphere_rows][1:5] == ["convolution"] * 2 + ["convolution+plane"] * 2
     for row in sphere_rows:
         assert ROW_KEYS <= set(row)
         assert row["points"] == 300 and row["samples"] == 6400
@@ -45,7 +47,8 @@ def test_rows_have_their_keys_and_the_exact_sum_first(sphere_rows):
     assert exact["rel_l2"] == exact["mean_rel"] == exact["max_rel"] == 0.0 and not exact["pareto"]
     conv = [r for r in sphere_rows if r["transport"] == "convolution"]
     assert all("fft_shape" in r and "kernels" in r["stage_median_s"] for r in conv)
-    assert [r["label"] for r in sphere_rows[1:]] == ["L2 d1 t0.001", "L8 d1 t0.001", "eps0.01", "eps0.2", "eps2"]
+    assert [r["label"] for r in sphere_rows[1:]] == ["L2 d1 t0.001", "L8 d1 t0.001", "L2 d1 t0.001 +plane",
+                                                     "L8 d1 t0.001 +plane", "eps0.01", "eps0.2", "eps2"]
 
 
 def test_errors_behave(sphere_rows):
@@ -53,8 +56,10 @@ def test_errors_behave(sphere_rows):
     errors = [r["rel_l2"] for r in sorted(hier, key=lambda r: r["epsilon"])]
     assert errors[0] < 1e-3  # epsilon 0.01 is nearly the exact sum
     assert errors[0] < errors[1] < errors[2]  # and the error grows with epsilon
-    two, eight = (r["rel_l2"] for r in sphere_rows if r["transport"] == "convolution")
+    two, eight = (r["rel_l2"] for r in sphere_rows if r["method"] == "convolution")
     assert eight < two  # more layers, a finer depth discretization
+    _, eight_plane = (r["rel_l2"] for r in sphere_rows if r["method"] == "convolution+plane")
+    assert eight_plane < eight / 2  # the plane correction of the depth discretization
     assert any(r["pareto"] for r in hier) and any(r["pareto"] for r in sphere_rows if r["transport"] == "convolution")
 
 
@@ -106,10 +111,12 @@ def test_bench_accuracy_quick_end_to_end(tmp_path):
     assert out["meta"]["scenes"]["dielectric"]["eta"] > 1 and out["meta"]["scenes"]["null"]["eta"] == 1
     for scene in ("null", "dielectric"):
         rows = [r for r in out["rows"] if r["scene"] == scene]
-        assert [r["transport"] for r in rows].count("convolution") == 4
+        assert [r["transport"] for r in rows].count("convolution") == 8
+        assert [r["method"] for r in rows].count("convolution+plane") == 4
         assert [r["transport"] for r in rows].count("hierarchical") == 4
         assert rows[0]["transport"] == "exact" and rows[0]["points"] > 50
         assert {"at_hierarchical", "at_convolution", "overlap"} <= set(out["headline"][scene])
+        assert {"at_hierarchical", "at_convolution", "overlap"} <= set(out["headline"][f"{scene} +plane"])
     assert (tmp_path / "accuracy.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert json.loads((tmp_path / "accuracy.json").read_text())["rows"] == out["rows"]
     assert "front" in (tmp_path / "accuracy.txt").read_text()

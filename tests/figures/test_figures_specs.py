@@ -29,7 +29,10 @@ def test_every_figure_is_well_formed():
     assert sizes[1] == 10 * sizes[0]
     assert sorted({p.params["threshold"] for p in fig2.panels}) == [0.0, 0.001, 0.05]
     fig5 = FIGURES["fig5"]()
-    assert [p.params["layers"] for p in fig5.panels if p.method == "convolution"] == [2, 4, 8, 16]
+    paper = [p for p in fig5.panels if p.method == "convolution" and p.params.get("correction", "none") == "none"]
+    assert [p.params["layers"] for p in paper] == [2, 4, 8, 16]
+    beyond = [p.params["layers"] for p in fig5.panels if p.params.get("correction") == "plane"]
+    assert beyond == [8, 16]
     assert {p.method for p in fig5.panels} == {"convolution", "hierarchical", "exact", "volpathmis"}
     assert len(FIGURES["fig4"]().scenes()) == 10
 

@@ -45,6 +45,24 @@ def test_convolution_agrees_with_exact_sum(mi, sphere_scene, object_mask):
     np.testing.assert_allclose(ratio, 1.0, atol=0.03)
 
 
+def test_plane_correction_brings_few_layers_closer_to_the_exact_sum(mi, sphere_scene, object_mask):
+    """8 layers on the 4 mm skin sphere (dz ~ 0.57 mm, about 0.5-0.9 mean free paths): mean per-pixel relative
+    difference to the exact sum over the object, the paper's layers (``correction="none"``) against the plane
+    correction. Measured: 5.5 % and 1.7 % (over all channels)."""
+    images = {}
+    for name, integrator in (("exact", {"transport": "exact"}),
+                             ("none", {"layers": 8, "threshold": 0.0, "correction": "none"}),
+                             ("plane", {"layers": 8, "threshold": 0.0, "correction": "plane"})):
+        scene, images[name] = _render(mi, sphere_scene(integrator=integrator, res=64, spp=1), seed=3)
+    mask = object_mask(scene)
+    exact = images["exact"][mask]
+
+    def error(name):
+        return float(np.mean(np.abs(images[name][mask] - exact) / np.maximum(exact, 1e-3 * exact.mean())))
+
+    assert error("plane") < 0.5 * error("none"), (error("plane"), error("none"))
+
+
 def test_environment_map_lights_the_object(mi, sphere_scene, object_mask, tmp_path):
     from convsss.image import write_exr
 

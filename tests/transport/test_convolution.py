@@ -217,3 +217,93 @@ def test_bad_parameters(kwargs, message):
 def test_needs_a_frame():
     with pytest.raises(ConvsssError, match="ViewFrame"):
         make_transport("convolution", sphere(500, 3.0), material("skin1").profile())
+
+
+def tilted_plane(half_width, spacing, cos_theta, depth_offset=0.0):
+    """A uniformly lit square plane tilted about the x axis (normal at ``cos_theta`` to the view axis)."""
+    flat = plane(half_width, spacing)
+    sin_theta = np.sqrt(1 - cos_theta**2)
+    x, y = flat.position[:, 0], flat.position[:, 1]
+    position = np.stack([x, y * cos_theta, y * sin_theta + depth_offset], axis=1)
+    normal = np.broadcast_to([0.0, -sin_theta, cos_theta], position.shape)
+    return IrradianceSamples(position, flat.area, flat.irradiance, normal)
+
+
+@pytest.mark.parametrize("cos_theta", [1.0, 0.7, 0.3])
+def test_plane_correction_makes_any_lit_plane_exit_total_reflectance(cos_theta):
+    """A tilted plane under uniform E, 12 layers 3.6–4.9 mean free paths apart, receivers at 13 depths between
+    layers. Measured M / (R_total E), paper's layers alone -> with the plane correction (max deviation):
+
+    =========  ===============  =========
+    cos theta  layers alone     corrected
+    =========  ===============  =========
+    1.0        0.997–1.000      0.3 %
+    0.7        0.718–1.083      0.5 %
+    0.3        1.046–1.789      3.1 %
+    =========  ===============  =========
+
+    The correction models the layers' depth discretization exactly; what remains is the x-y cells' (here a
+    quarter mean free path), which grows with the tilt and with cell / mfp (~5 % at one mean free path, cos 0.7).
+    """
+    m = material("skin1")
+    profile = m.profile()
+    half = float(profile.radius_energy(0.002).max())
+    samples = tilted_plane(half, m.mfp_mm.min() / 8, cos_theta)
+    transport = ConvolutionTransport(samples, profile, FRAME, layers=12, cell_size=m.mfp_mm.min() / 4,
+                                     correction="plane")
+    # receivers along the tilt near the centre, at different depth fractions between layers
+    y = np.linspace(-0.3, 0.3, 13) * half
+    query = np.stack([np.zeros_like(y), y * cos_theta, y * np.sqrt(1 - cos_theta**2)], axis=1)
+    normals = np.broadcast_to(samples.normal[0], query.shape)
+    corrected = transport.exitance(query, normals)
+    np.testing.assert_allclose(corrected / profile.total_reflectance, 1.0, atol=0.01 if cos_theta > 0.5 else 0.035)
+    if cos_theta < 1:
+        plain = transport.exitance(query)  # no normals: the paper's layers alone
+        assert np.abs(plain / profile.total_reflectance - 1).max() > 0.05
+
+
+def test_plane_correction_against_the_exact_sum_and_energy():
+    """The plane correction on closed surfaces. Relative L2 error against the exact sum (40k samples, 256 cells,
+    t = 0), measured on this machine:
+
+    ==========================  ===========  ======  ======  ======  ======
+    sphere                      correction   2 lay.  4 lay.  8 lay.  16 lay.
+    ==========================  ===========  ======  ======  ======  ======
+    1.25 mm wholemilk           none         0.217   0.133   0.067   0.023
+    1.25 mm wholemilk           plane        0.561   0.084   0.017   0.004
+    5 mm marble                 none         0.485   0.358   0.163   0.077
+    5 mm marble                 plane        1.059   0.236   0.031   0.006
+    10 mm wholemilk             none         0.852   0.719   0.402   0.175
+    10 mm wholemilk             plane        1.772   0.514   0.094   0.014
+    ==========================  ===========  ======  ======  ======  ======
+
+    At 2 layers the local-plane model does not hold (the layers are as far apart as the object is deep) and the
+    correction makes things worse; from 4 layers on it helps, by 5–12x at 16 layers. Energy of a 10 mm skin
+    sphere under uniform light (total / flux R_total): 0.991 / 0.992 / 0.993 at 8 layers with the correction,
+    0.962 / 1.050 / 1.257 without.
+    """
+    profile = material("marble").profile()
+    samples = sphere(40000, 5.0)
+    query, normals = samples.position[::40], samples.normal[::40]
+    exact = ExactTransport(samples, profile).exitance(query)
+    errors = {}
+    for correction in ("none", "plane"):
+        t = ConvolutionTransport(samples, profile, FRAME, layers=16, resolution=256, threshold=0.0,
+                                 correction=correction)
+        errors[correction] = np.linalg.norm(t.exitance(query, normals) - exact) / np.linalg.norm(exact)
+    assert errors["plane"] < 0.015 and errors["plane"] < errors["none"] / 4, errors
+
+    skin = material("skin1").profile()
+    lit = sphere(60000, 10.0, uniform=True)
+    t = ConvolutionTransport(lit, skin, FRAME, layers=8, resolution=256, correction="plane")
+    ratio = (t.exitance(lit.position, lit.normal) * lit.area[:, None]).sum(0) / (
+        lit.flux.sum(0) * skin.total_reflectance)
+    np.testing.assert_allclose(ratio, 1.0, atol=0.01)
+
+
+def test_plane_correction_needs_normals_and_a_known_mode():
+    flat = plane(3.0, 0.2)
+    with pytest.raises(ConvsssError, match="normals"):
+        ConvolutionTransport(flat, material("skin1").profile(), FRAME, correction="plane")
+    with pytest.raises(ConvsssError, match="correction"):
+        ConvolutionTransport(sphere(500, 3.0), material("skin1").profile(), FRAME, correction="cubic")

@@ -10,8 +10,9 @@ What is measured, per scene:
 2. **Reference.** :class:`~convsss.transport.exact.ExactTransport` (the direct sum, paper Eq. 1 discretized) at the
    visible points; timed once.
 3. **Configurations.** The convolution transport (paper §4–5) for every ``layers x downsample x threshold`` (cell
-   size: the pixel footprint at the object, as a render), and the hierarchical transport (Jensen & Buhler 2002) for
-   every ``epsilon`` (leaf size 4).
+   size: the pixel footprint at the object, as a render), as published (method ``convolution``) and with the plane
+   correction of its depth discretization (``convolution+plane``, beyond the paper, given the visible points'
+   normals), and the hierarchical transport (Jensen & Buhler 2002) for every ``epsilon`` (leaf size 4).
 4. **Time** (``seconds``): wall time of *constructing the transport and calling* ``exitance(points)`` once, the whole
    transport stage of a render. Convolution kernels are computed cold in every run (the kernel cache is cleared
    first, as in a single render); the octree is built in every run. Median of ``runs`` runs, the runs of all
@@ -25,7 +26,8 @@ What is measured, per scene:
      ``f_c = 0.01 mean_k(M_ref[:, c])`` of :mod:`convsss.compare`.
 
 6. **Pareto fronts** per method (no other point of the method is both faster and more accurate), and the headline
-   **time ratio at equal error**: for each hierarchical point, the convolution front's time at that point's
+   **time ratio at equal error** (for each convolution method): for each hierarchical point, the convolution
+   front's time at that point's
    ``rel_l2`` (piecewise linear in log time against log error between front points; none where the error is outside
    the front's range), divided by the hierarchical time. Ratio > 1: the convolution transport is slower.
 
@@ -52,7 +54,9 @@ THRESHOLDS = (0.0, 0.001, 0.05)
 #: The sweep asked for (0.01–1), plus 2 and 5: coarse enough to reach the convolution transport's errors.
 EPSILONS = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
 SCENES = ("null", "dielectric")
-METHOD_COLORS = {"convolution": "tab:blue", "hierarchical": "tab:orange"}
+CORRECTIONS = ("none", "plane")
+#: Methods compared: the paper's layers, the layers with the plane correction (beyond the paper), Jensen–Buhler.
+METHOD_COLORS = {"convolution": "tab:blue", "convolution+plane": "tab:green", "hierarchical": "tab:orange"}
 
 
 # --- inputs --------------------------------------------------------------------------------------------------------
@@ -87,7 +91,8 @@ def bunny_scene(kind, resolution=256, size_mm=40.0, material="wholemilk"):
 def prepare_case(scene_dict, sample_density=4.0, seed=0):
     """Samples and visible points of the scene's (first) translucent object, as a render prepares them.
 
-    Returns a dict: ``samples`` (IrradianceSamples), ``points`` (K, 3) mm, ``profile``, ``frame`` (ViewFrame),
+    Returns a dict: ``samples`` (IrradianceSamples), ``points`` (K, 3) mm, their outward ``normals``, ``profile``,
+    ``frame`` (ViewFrame),
     ``cell_size`` (mm, the pixel footprint at the object), ``object`` (its summary) and ``prepare_s`` (seconds).
     """
     import drjit as dr
@@ -114,7 +119,9 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0):
     si = scene.ray_intersect(ray)
     on_object = si.is_valid().numpy() & (dr.reinterpret_array(mi.UInt32, si.shape).numpy() == obj.shape_index)
     points = dr.ravel(si.p).numpy().reshape(-1, 3)[on_object].astype(np.float64) * params.unit_mm
-    return {"samples": samples, "points": np.ascontiguousarray(points), "profile": obj.profile,
+    normals = dr.ravel(mi.Vector3f(si.n)).numpy().reshape(-1, 3)[on_object].astype(np.float64) * obj.orientation
+    return {"samples": samples, "points": np.ascontiguousarray(points), "normals": np.ascontiguousarray(normals),
+            "profile": obj.profile,
             "frame": sensor_frame(sensor, params.unit_mm), "cell_size": summary["pixel_footprint_mm"],
             "object": summary, "image": [width, height], "prepare_s": time.perf_counter() - start}
 
@@ -130,10 +137,17 @@ def error_metrics(test, reference):
     return {"rel_l2": rel_l2, "mean_rel": float(relative.mean()), "max_rel": float(relative.max())}
 
 
-def convolution_configs(layer_counts=LAYERS, downsamples=DOWNSAMPLES, thresholds=THRESHOLDS):
+def convolution_configs(layer_counts=LAYERS, downsamples=DOWNSAMPLES, thresholds=THRESHOLDS, corrections=CORRECTIONS):
     """Configuration dicts of the convolution transport (every combination)."""
-    return [{"transport": "convolution", "layers": int(n), "downsample": float(d), "threshold": float(t)}
-            for n in layer_counts for d in downsamples for t in thresholds]
+    return [{"transport": "convolution", "layers": int(n), "downsample": float(d), "threshold": float(t),
+             "correction": c} for c in corrections for n in layer_counts for d in downsamples for t in thresholds]
+
+
+def method(config):
+    """``convolution``, ``convolution+plane``, ``hierarchical`` or ``exact``."""
+    if config["transport"] == "convolution" and config.get("correction", "none") == "plane":
+        return "convolution+plane"
+    return config["transport"]
 
 
 def hierarchical_configs(epsilons=EPSILONS):
@@ -143,7 +157,8 @@ def hierarchical_configs(epsilons=EPSILONS):
 def label(config):
     """Short name of a configuration for tables and plots, e.g. ``L8 d0.5 t0.1%`` or ``eps0.05``."""
     if config["transport"] == "convolution":
-        return f"L{config['layers']} d{config['downsample']:g} t{config['threshold']:.3g}"
+        plane = " +plane" if config.get("correction", "none") == "plane" else ""
+        return f"L{config['layers']} d{config['downsample']:g} t{config['threshold']:.3g}{plane}"
     if config["transport"] == "hierarchical":
         return f"eps{config['epsilon']:g}"
     return config["transport"]
@@ -153,18 +168,19 @@ def build_transport(config, samples, profile, frame, cell_size):
     """The transport of ``config`` on ``samples`` (constructed, not yet queried)."""
     if config["transport"] == "convolution":
         return ConvolutionTransport(samples, profile, frame, layers=config["layers"], cell_size=cell_size,
-                                    downsample=config["downsample"], threshold=config["threshold"])
+                                    downsample=config["downsample"], threshold=config["threshold"],
+                                    correction=config.get("correction", "none"))
     if config["transport"] == "hierarchical":
         return HierarchicalTransport(samples, profile, epsilon=config["epsilon"])
     return ExactTransport(samples, profile)
 
 
-def timed_run(config, samples, points, profile, frame, cell_size):
+def timed_run(config, samples, points, profile, frame, cell_size, normals=None):
     """One run: ``(seconds, exitance (K, 3), transport)``; kernels cold for the convolution transport."""
     CACHE.clear()
     start = time.perf_counter()
     transport = build_transport(config, samples, profile, frame, cell_size)
-    exitance = transport.exitance(points)
+    exitance = transport.exitance(points, normals)
     return time.perf_counter() - start, exitance, transport
 
 
@@ -180,7 +196,8 @@ def _stages(transport):
     return {k: float(v) for k, v in transport.timings.items()}
 
 
-def bench_points(samples, points, profile, frame, cell_size, configs, runs=3, bar=None, scene="scene"):
+def bench_points(samples, points, profile, frame, cell_size, configs, runs=3, bar=None, scene="scene",
+                 normals=None):
     """Rows for one set of samples and visible points (numpy in, rows out); the exact sum first (error 0).
 
     Each row: ``scene, transport, label, layers, downsample, threshold, epsilon, seconds`` (median of ``runs``),
@@ -198,7 +215,7 @@ def bench_points(samples, points, profile, frame, cell_size, configs, runs=3, ba
     errors, last = [None] * len(configs), [None] * len(configs)
     for run in range(runs):
         for k, config in enumerate(configs):
-            seconds, exitance, transport = timed_run(config, samples, points, profile, frame, cell_size)
+            seconds, exitance, transport = timed_run(config, samples, points, profile, frame, cell_size, normals)
             times[k].append(seconds)
             stages[k].append(_stages(transport))
             if run == 0:  # every run computes the same numbers
@@ -214,9 +231,10 @@ def bench_points(samples, points, profile, frame, cell_size, configs, runs=3, ba
 
 def _row(scene, config, times, stages, errors, transport, n_points, n_samples):
     names = sorted({name for s in stages for name in s})
-    row = {"scene": scene, "transport": config["transport"], "label": label(config),
+    row = {"scene": scene, "transport": config["transport"], "method": method(config), "label": label(config),
            "layers": config.get("layers"), "downsample": config.get("downsample"),
-           "threshold": config.get("threshold"), "epsilon": config.get("epsilon"),
+           "threshold": config.get("threshold"), "correction": config.get("correction"),
+           "epsilon": config.get("epsilon"),
            "seconds": float(np.median(times)), "seconds_runs": [float(t) for t in times],
            "stage_median_s": {name: float(np.median([s.get(name, 0.0) for s in stages])) for name in names},
            **errors, "points": int(n_points), "samples": int(n_samples)}
@@ -244,8 +262,8 @@ def mark_pareto(rows):
     """Set ``row["pareto"]`` per method (the exact sum is on no front)."""
     for row in rows:
         row["pareto"] = False
-    for method in METHOD_COLORS:
-        chosen = [r for r in rows if r["transport"] == method]
+    for name in METHOD_COLORS:
+        chosen = [r for r in rows if r.get("method", r["transport"]) == name]
         for k in pareto_front(chosen):
             chosen[k]["pareto"] = True
     return rows
@@ -272,7 +290,7 @@ def time_at_error(front, error):
     return float(np.exp(t0 + w * (t1 - t0))), "inside"
 
 
-def headline(rows):
+def headline(rows, convolution="convolution"):
     """The time ratio convolution / hierarchical at equal error, both ways, and a summary.
 
     ``at_hierarchical``: per hierarchical point, the convolution front's time at its error (the headline).
@@ -282,7 +300,7 @@ def headline(rows):
     front's error range), ``ratio_min / ratio_median / ratio_max`` over them (None without overlap), and the error
     ranges of both methods.
     """
-    conv = [r for r in rows if r["transport"] == "convolution"]
+    conv = [r for r in rows if r.get("method", r["transport"]) == convolution]
     hier = [r for r in rows if r["transport"] == "hierarchical"]
     conv_front = [conv[k] for k in pareto_front(conv)]
     hier_front = [hier[k] for k in pareto_front(hier)]
@@ -364,9 +382,10 @@ def bench_accuracy(scenes=SCENES, resolution=256, size_mm=40.0, material="wholem
                                  "mean_free_paths": case["object"]["mean_free_paths"],
                                  "prepare_s": case["prepare_s"]}
         scene_rows = bench_points(case["samples"], case["points"], case["profile"], case["frame"], case["cell_size"],
-                                  configs, runs, bar, scene)
+                                  configs, runs, bar, scene, case["normals"])
         rows += scene_rows
         headlines[scene] = headline(scene_rows)
+        headlines[f"{scene} +plane"] = headline(scene_rows, "convolution+plane")
     bar.close()
     meta["load_average_end"] = list(os.getloadavg())
     return {"meta": meta, "rows": rows, "headline": headlines}
@@ -410,20 +429,20 @@ def accuracy_plot(result, path):
 
     from ..image import _atomic_write
 
-    scenes = list(result["headline"])
+    scenes = list(result["meta"]["scenes"])
     fig = Figure(figsize=(7.0 * len(scenes), 5.5), layout="constrained")
     axes = fig.subplots(1, len(scenes), squeeze=False)[0]
     for ax, scene in zip(axes, scenes):
         rows = [r for r in result["rows"] if r["scene"] == scene]
-        for method, color in METHOD_COLORS.items():
-            chosen = [r for r in rows if r["transport"] == method]
+        for name, color in METHOD_COLORS.items():
+            chosen = [r for r in rows if r.get("method", r["transport"]) == name]
             if not chosen:
                 continue
             ax.scatter([r["seconds"] for r in chosen], [r["rel_l2"] for r in chosen], s=18, color=color, alpha=0.6,
-                       label=method)
+                       label=name)
             front = [chosen[k] for k in pareto_front(chosen)]
             ax.step([r["seconds"] for r in front], [r["rel_l2"] for r in front], where="post", color=color, lw=1.5)
-            for k, r in enumerate(front if method == "convolution" else chosen):
+            for k, r in enumerate(front if name.startswith("convolution") else chosen):
                 ax.annotate(r["label"], (r["seconds"], r["rel_l2"]), fontsize=6.5, color=color,
                             xytext=(4, 3 if k % 2 == 0 else -9), textcoords="offset points")
         exact = [r["seconds"] for r in rows if r["transport"] == "exact"]

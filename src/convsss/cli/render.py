@@ -71,7 +71,7 @@ def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, hei
 
 def integrator_options(func):
     """Options mirroring the integrator's parameters; unset ones keep the scene's (or the defaults)."""
-    from ..scene.params import DOWNSAMPLES, SPECULARS, SPLATS
+    from ..scene.params import CORRECTIONS, DOWNSAMPLES, SPECULARS, SPLATS
 
     options = [
         click.option("--layers", type=int, help="Layers parallel to the image plane (paper §4). [default: 8]"),
@@ -86,6 +86,10 @@ def integrator_options(func):
         click.option("--splat", type=click.Choice(SPLATS),
                      help="Irradiance into the two nearest layers: by depth (linear) or half and half (the paper). "
                           "[default: linear]"),
+        click.option("--correction", type=click.Choice(CORRECTIONS),
+                     help="plane: correct the layers' depth discretization with their exact response to the "
+                          "surface's tangent plane (beyond the paper); none: the paper's method as published. "
+                          "[default: plane]"),
         click.option("--irradiance-samples", type=int,
                      help="Directions per surface point for area and environment lights. [default: 16]"),
         click.option("--sample-density", type=float, help="Surface samples per layer cell. [default: 4]"),
@@ -105,7 +109,8 @@ def integrator_options(func):
 
 
 INTEGRATOR_OPTIONS = {"layers": "layers", "threshold": "threshold", "downsample": "downsample",
-                      "transport": "transport", "splat": "splat", "irradiance_samples": "irradiance_samples",
+                      "transport": "transport", "splat": "splat", "correction": "correction",
+                      "irradiance_samples": "irradiance_samples",
                       "sample_density": "sample_density", "specular": "specular", "phong_exponent": "phong_exponent",
                       "max_depth": "max_depth", "unit_mm": "unit_mm", "profile_csv": "profile"}
 

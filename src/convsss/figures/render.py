@@ -18,7 +18,8 @@ from ..scene.params import RenderParams
 from .scenes import load, scene_dict
 
 #: Integrator parameters every figure panel shares unless it says otherwise (the paper's Phong highlights).
-BASE_PARAMS = {"specular": "phong"}
+#: The paper's method as published (``correction="none"``); panels that go beyond it say so in their params.
+BASE_PARAMS = {"specular": "phong", "correction": "none"}
 
 
 def panel_params(method, params):

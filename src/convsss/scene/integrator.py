@@ -141,7 +141,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     def _transport_params(self, cell_full):
         p = self.params
         candidates = {"layers": p.layers, "cell_size": cell_full, "downsample": p.downsample,
-                      "threshold": p.threshold, "splat": p.splat}
+                      "threshold": p.threshold, "splat": p.splat, "correction": p.correction}
         import inspect
 
         accepted = inspect.signature(TRANSPORTS[p.transport]).parameters

@@ -13,6 +13,7 @@ import numpy as np
 from ..errors import ConvsssError
 
 SPLATS = ("linear", "half")
+CORRECTIONS = ("plane", "none")
 SPECULARS = ("bsdf", "phong", "none")
 DOWNSAMPLES = (1.0, 0.5, 0.25)
 
@@ -39,8 +40,12 @@ class RenderParams:
     splat : str
         How a sample's irradiance goes into the layers: ``linear`` (weights by depth between the two nearest layers)
         or ``half`` (half and half, as the paper says).
+    correction : str
+        ``plane`` (beyond the paper): correct the convolution's depth discretization with its exact response to the
+        receiver's tangent plane (:mod:`convsss.transport.correction`); ``none``: the paper's method as published.
     transport : str
-        ``convolution`` (the paper's method) or ``exact`` (the direct sum, a reference for small scenes).
+        ``convolution`` (the paper's method), ``hierarchical`` (Jensen & Buhler 2002) or ``exact`` (the direct sum,
+        a reference for small scenes).
     irradiance_samples : int
         Direction samples per surface point for area and environment emitters (point, spot and directional lights
         are evaluated exactly).
@@ -66,6 +71,7 @@ class RenderParams:
     threshold: float = 0.001
     downsample: float = 1.0
     splat: str = "linear"
+    correction: str = "plane"
     transport: str = "convolution"
     irradiance_samples: int = 16
     sample_density: float = 4.0
@@ -105,7 +111,8 @@ class RenderParams:
         number("downsample", float, 0.0, low_open=True)
         if self.downsample not in DOWNSAMPLES:
             raise ConvsssError(f"downsample={self.downsample!r} is not allowed: choose one of 1, 0.5, 0.25")
-        for name, allowed in (("splat", SPLATS), ("specular", SPECULARS), ("transport", available_transports())):
+        for name, allowed in (("splat", SPLATS), ("correction", CORRECTIONS), ("specular", SPECULARS),
+                              ("transport", available_transports())):
             if getattr(self, name) not in allowed:
                 raise ConvsssError(f"{name}={getattr(self, name)!r} is not allowed: choose one of {', '.join(allowed)}")
         object.__setattr__(self, "profile", str(self.profile or ""))

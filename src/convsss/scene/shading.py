@@ -87,20 +87,22 @@ class Shader:
     def _subsurface(self, si, which, throughput):
         """Paper Eq. 7 on the lanes that hit translucent objects: ``(lanes, beta (1/pi) F_t(eta, w_o) M(x_o))``.
 
-        ``M`` comes from each object's transport (numpy, positions in mm); only those lanes are converted.
+        ``M`` comes from each object's transport (numpy, positions in mm, outward normals for the transports that
+        use them); only those lanes are converted.
         """
         hit = np.flatnonzero(which >= 0)
         if len(hit) == 0:
             return hit, None
         chosen = mi.UInt32(hit.astype(np.uint32))
         points = _to_numpy3(dr.gather(mi.Point3f, si.p, chosen)).astype(np.float64) * self.params.unit_mm
+        normals = _to_numpy3(dr.gather(mi.Vector3f, mi.Vector3f(si.n), chosen)).astype(np.float64)
         cos_o = np.abs(dr.gather(mi.Float, si.wi.z, chosen).numpy())
         beta = _to_numpy3(dr.gather(mi.Color3f, throughput, chosen))
         value = np.zeros((len(hit), 3))
         for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
             mask = which[hit] == k
             if np.any(mask):
-                exitance = transport.exitance(points[mask])
+                exitance = transport.exitance(points[mask], normals[mask] * obj.orientation)
                 transmit = fresnel_transmittance(obj.eta, cos_o[mask])
                 value[mask] = beta[mask] * exitance * (transmit / np.pi)[:, None]
                 self.lookups += int(mask.sum())

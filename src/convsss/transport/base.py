@@ -27,17 +27,25 @@ class Transport:
         self.profile = profile
         self.timings = StageTimer()
 
-    def exitance(self, points):
-        """Radiant exitance ``M`` at ``points`` (K, 3) in mm; returns (K, 3) float64."""
+    def exitance(self, points, normals=None):
+        """Radiant exitance ``M`` at ``points`` (K, 3) in mm; returns (K, 3) float64.
+
+        ``normals`` (K, 3), the outward surface normals at the points, are optional; transports that can use the
+        local surface orientation (the convolution's plane correction) do, the others ignore them.
+        """
         points = as_points(points, "query points")
+        if normals is not None:
+            normals = as_points(normals, "query normals")
+            if len(normals) != len(points):
+                raise ValueError(f"{len(points)} query points need {len(points)} normals, got {len(normals)}")
         self._prepare(points)
         with self.timings("lookup"):
-            return self._exitance(points)
+            return self._exitance(points, normals)
 
     def _prepare(self, points):
         """Work a query needs before the lookup itself (timed by the transport under its own stage names)."""
 
-    def _exitance(self, points):
+    def _exitance(self, points, normals):
         raise NotImplementedError
 
     @property
