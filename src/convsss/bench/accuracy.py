@@ -14,10 +14,10 @@ What is measured, per scene:
    correction of its depth discretization (``convolution+plane``, beyond the paper, given the visible points'
    normals), and the hierarchical transport (Jensen & Buhler 2002) for every ``epsilon`` (leaf size 4).
 4. **Time** (``seconds``): wall time of *constructing the transport and calling* ``exitance(points)`` once, the whole
-   transport stage of a render. Convolution kernels are computed cold in every run (the kernel cache is cleared
-   first, as in a single render); the octree is built in every run. Median of ``runs`` runs, the runs of all
-   configurations interleaved (so a change of machine load spreads over all of them). Sampling, irradiance and
-   shading are not timed: they are the same for every transport.
+   transport stage of a render. Convolution kernels and plane-correction tables are computed cold in every run
+   (their caches are cleared first, as in a single render); the octree is built in every run. Median of ``runs``
+   runs, the runs of all configurations interleaved (so a change of machine load spreads over all of them).
+   Sampling, irradiance and shading are not timed: they are the same for every transport.
 5. **Error** of the radiant exitance ``M`` (K points x 3 channels, without the common ``(1/pi) F_t`` factor)
    against the exact ``M_ref``:
 
@@ -46,6 +46,7 @@ from tqdm import tqdm
 
 from ..compare import FLOOR
 from ..transport import ConvolutionTransport, ExactTransport, HierarchicalTransport
+from ..transport.correction import RESPONSES
 from ..transport.kernels import CACHE
 
 LAYERS = (2, 4, 8, 16)
@@ -176,8 +177,9 @@ def build_transport(config, samples, profile, frame, cell_size):
 
 
 def timed_run(config, samples, points, profile, frame, cell_size, normals=None):
-    """One run: ``(seconds, exitance (K, 3), transport)``; kernels cold for the convolution transport."""
+    """One run: ``(seconds, exitance (K, 3), transport)``; kernels and plane-correction tables cold."""
     CACHE.clear()
+    RESPONSES.clear()
     start = time.perf_counter()
     transport = build_transport(config, samples, profile, frame, cell_size)
     exitance = transport.exitance(points, normals)

@@ -35,7 +35,7 @@ N_COS = 33
 N_W = 17
 
 
-def line_integral_table(profile, reach, size=1024, quadrature=1024):
+def line_integral_table(profile, reach, size=384, quadrature=384):
     """``Lambda(d) = ∫_{-inf}^{inf} R_d(sqrt(d^2 + v^2)) dv`` on a grid of ``d`` (0 and geometric up to ``reach``)."""
     core = float(np.min(profile.radius_below(0.5)))
     d = np.concatenate([[0.0], np.geomspace(1e-3 * core, reach, size - 1)])
@@ -95,7 +95,7 @@ def plane_response(profile, dz, splat="linear", reach=None):
     reach = float(np.max(profile.radius_energy(1e-5))) if reach is None else reach
     d_grid, lam = line_integral_table(profile, 4.0 * reach)
     core = float(np.min(profile.radius_below(0.5)))
-    t = np.linspace(-1.0, 1.0, 4001) * np.arcsinh(4.0 * reach / (1e-3 * core))
+    t = np.linspace(-1.0, 1.0, 1601) * np.arcsinh(4.0 * reach / (1e-3 * core))
     u = 1e-3 * core * np.sinh(t)
     du = np.gradient(u)
     cos_grid = np.linspace(0.0, 1.0, N_COS)
@@ -105,16 +105,16 @@ def plane_response(profile, dz, splat="linear", reach=None):
     return cos_grid, w_grid, out / profile.total_reflectance
 
 
-_RESPONSES = KernelCache(size=8)
+RESPONSES = KernelCache(size=8)
 
 
 def cached_plane_response(profile, key, dz, splat):
     """:func:`plane_response`'s ``C`` table, cached per (profile ``key``, ``dz``, splat rule)."""
     entry = (key, float(dz), splat)
-    response = _RESPONSES.get(entry)
+    response = RESPONSES.get(entry)
     if response is None:
         response = plane_response(profile, dz, splat)[2]
-        _RESPONSES.put(entry, response)
+        RESPONSES.put(entry, response)
     return response
 
 
