@@ -11,13 +11,12 @@ Tone mapping (for display only; EXRs stay linear):
 Then sRGB encoding and 8 bits.
 """
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from .errors import ConvsssError
+from .files import atomic_write
 
 TONEMAPS = ("reinhard", "exposure", "none")
 _LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -60,21 +59,6 @@ def srgb_encode(display):
     return np.round(encoded * 255.0).astype(np.uint8)
 
 
-def _atomic_write(path, write):
-    """Call ``write(tmp_path)`` on a temporary file in the target folder, then rename it over ``path``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
 def _bitmap(array):
     from .backend import load_mitsuba
 
@@ -88,14 +72,14 @@ def write_exr(path, rgb):
     if rgb.ndim != 3 or rgb.shape[2] < 3:
         raise ConvsssError(f"an RGB image must have shape (H, W, 3), got {rgb.shape}")
     mi, bitmap = _bitmap(rgb[..., :3])
-    return _atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.OpenEXR))
+    return atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.OpenEXR))
 
 
 def write_png(path, rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
     """Tone-map linear RGB (H, W, 3) and write an 8-bit sRGB PNG, atomically. Returns the path."""
     pixels = srgb_encode(tonemap(rgb, method, key, exposure, mask))
     mi, bitmap = _bitmap(pixels)
-    return _atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.PNG))
+    return atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.PNG))
 
 
 def read_image(path):

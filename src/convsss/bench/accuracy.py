@@ -429,7 +429,7 @@ def accuracy_plot(result, path):
     """A PNG: per scene, rel_l2 (log) against seconds (log), both methods, their Pareto fronts, labelled points."""
     from matplotlib.figure import Figure
 
-    from ..image import _atomic_write
+    from ..files import atomic_write
 
     scenes = list(result["meta"]["scenes"])
     fig = Figure(figsize=(7.0 * len(scenes), 5.5), layout="constrained")
@@ -457,4 +457,4 @@ def accuracy_plot(result, path):
         ax.set_title(f"{scene} boundary: {facts['points']} points, {facts['samples']} samples{timing}", fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-    return _atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=130))
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=130))

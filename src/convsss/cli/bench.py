@@ -73,8 +73,8 @@ def bench_accuracy_command(quick, runs, resolution, size_mm, material, scenes, s
     from pathlib import Path
 
     from ..bench.accuracy import accuracy_plot, bench_accuracy, report_text
+    from ..files import json_ready, write_text
     from ..materials import material as lookup_material
-    from .render import _json_ready, atomic_write_text
 
     lookup_material(material)  # an unknown name fails before anything is loaded
     chosen = ("null", "dielectric") if scenes == "both" else (scenes,)
@@ -85,13 +85,13 @@ def bench_accuracy_command(quick, runs, resolution, size_mm, material, scenes, s
                                 thresholds=(0.001,), epsilons=(0.01, 0.1, 1.0, 5.0), **options)
     else:
         result = bench_accuracy(resolution=resolution or 256, **options)
-    result = _json_ready(result)
+    result = json_ready(result)
     text = report_text(result)
     if out_dir:
         out = Path(out_dir)
         plot = accuracy_plot(result, out / "accuracy.png")
-        atomic_write_text(out / "accuracy.json", json.dumps(result, indent=1))
-        atomic_write_text(out / "accuracy.txt", text + "\n")
+        write_text(out / "accuracy.json", json.dumps(result, indent=1))
+        write_text(out / "accuracy.txt", text + "\n")
         result["meta"]["outputs"] = {"png": str(plot), "json": str(out / "accuracy.json"),
                                      "txt": str(out / "accuracy.txt")}
     click.echo(json.dumps(result, indent=1) if as_json else text)

@@ -1,25 +1,16 @@
 """``convsss compare``: error metrics of one image against a reference, over the object's pixels."""
 
 import json
-import math
 from pathlib import Path
 
 import click
 
+from ..files import json_ready
 from .main import cli
 
 _ROWS = (("rmse", "RMSE"), ("relmse", "relative MSE"), ("mean_rel_error", "mean relative error"),
          ("mean_reference", "mean A"), ("mean_test", "mean B"), ("mean_ratio", "mean B / mean A"),
          ("max_reference", "max A"), ("max_test", "max B"))
-
-
-def _json_ready(value):
-    """NaN and infinities as null, recursively."""
-    if isinstance(value, list):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 @cli.command()
@@ -65,7 +56,7 @@ def compare(reference, test, mask_path, output, limit, block, as_json):
                   "mask": None if mask_path is None else str(mask_path),
                   "size": [a.shape[1], a.shape[0]], **result,
                   "error_image": None if output is None else str(output)}
-        click.echo(json.dumps(_json_ready(report), indent=1))
+        click.echo(json.dumps(json_ready(report), indent=1))
         return
     unit = f"{block}x{block} blocks" if block > 1 else "pixels"
     click.echo(f"A (reference): {reference}  {a.shape[1]}x{a.shape[0]}, {result['pixels']} object {unit}")

@@ -6,9 +6,10 @@ import time
 import click
 
 from ..errors import ConvsssError
+from ..files import write_text
 from ..image import TONEMAPS
 from .main import cli
-from .render import atomic_write_text, load_source, output_stem, scene_source_options
+from .render import load_source, output_stem, scene_source_options
 
 
 @cli.command()
@@ -53,7 +54,7 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
     def save(image, done, index, n_passes):
         write_exr(stem.with_suffix(".exr"), image)
         write_png(stem.with_suffix(".png"), image, tonemap, key, exposure)
-        atomic_write_text(stem.with_suffix(".json"), json.dumps({
+        write_text(stem.with_suffix(".json"), json.dumps({
             "command": "reference", "scene": str(scene_file) if scene_file else None, "integrator": "volpathmis",
             "rr_depth": "off", "max_depth": -1, "spp_done": done, "spp_requested": total_spp,
             "passes_done": index + 1, "passes": n_passes, "seed": seed,

@@ -5,7 +5,6 @@ seconds, grid/FFT shapes and the object's size in mean free paths. Files are wri
 """
 
 import json
-import math
 import time
 from pathlib import Path
 
@@ -13,6 +12,7 @@ import click
 import numpy as np
 
 from ..errors import ConvsssError
+from ..files import json_ready, write_text
 from ..image import TONEMAPS
 from .main import cli
 
@@ -151,27 +151,6 @@ class StageProgress:
         self.bar.close()
 
 
-def atomic_write_text(path, text):
-    """Write ``text`` to ``path`` whole or not at all."""
-    from ..image import _atomic_write
-
-    return _atomic_write(path, lambda tmp: Path(tmp).write_text(text))
-
-
-def _json_ready(value):
-    if isinstance(value, dict):
-        return {str(k): _json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _json_ready(value.tolist())
-    if isinstance(value, (np.integer,)):
-        return int(value)
-    if isinstance(value, (np.floating, float)):
-        return float(value) if math.isfinite(value) else None
-    return value
-
-
 @cli.command()
 @scene_source_options
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
@@ -246,5 +225,5 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
              "tonemap": {"method": tonemap, "key": key, "exposure": exposure},
              **integ.stats, "seconds": seconds}
     if stats_path:
-        atomic_write_text(stats_path, json.dumps(_json_ready(stats), indent=1))
+        write_text(stats_path, json.dumps(json_ready(stats), indent=1))
     click.echo(f"wrote {exr} and {png} ({seconds['total']:.1f} s)")

@@ -4,8 +4,8 @@ from pathlib import Path
 
 import click
 
+from ..files import write_text
 from .main import cli
-from .render import atomic_write_text
 
 
 @cli.command()
@@ -47,7 +47,7 @@ def scene(mesh, material, size_mm, output, boundary, unit_mm, floor, width, heig
                              unit_mm)
     text = object_to_xml("object", scene_dict["object"]) if object_only else scene_to_xml(scene_dict)
     if output:
-        atomic_write_text(output, text)
+        write_text(output, text)
         click.echo(f"wrote {output}")
     else:
         click.echo(text, nl=False)

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import write_text
+
 #: Bump when a change to the code makes old references wrong.
 CACHE_FORMAT = 1
 
@@ -53,13 +55,6 @@ def canonical(value):
     if isinstance(value, np.ndarray):
         return canonical(value.tolist())
     return repr(value)
-
-
-def write_text(path, text):
-    """Write ``text`` to ``path`` whole or not at all."""
-    from ..image import _atomic_write
-
-    return _atomic_write(path, lambda tmp: Path(tmp).write_text(text))
 
 
 def reference_key(kind, scene, **settings):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cache import write_text
+from ..files import json_ready, write_text
 
 #: The paper's numbers quoted against ours (Munoz et al. 2011, §5 and Fig. 2).
 PAPER_C = {("small", 0.001): 7, ("large", 0.001): 1, ("small", 0.05): 2}
@@ -408,19 +408,5 @@ def write_report(out, run):
         lines.append("")
     lines.append(closing_note(run, settings))
     lines.append("")
-    write_text(out / "figures.json", json.dumps(_json_ready(run), indent=1))
+    write_text(out / "figures.json", json.dumps(json_ready(run), indent=1))
     return write_text(out / "report.md", "\n".join(lines))
-
-
-def _json_ready(value):
-    if isinstance(value, dict):
-        return {str(k): _json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _json_ready(value.tolist())
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value

@@ -225,7 +225,8 @@ class Runner:
 
 def _write_display(path, display):
     """Write an sRGB uint8 image as PNG, atomically."""
-    from ..image import _atomic_write, _bitmap
+    from ..files import atomic_write
+    from ..image import _bitmap
 
     mi, bitmap = _bitmap(np.ascontiguousarray(display))
-    return _atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.PNG))
+    return atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.PNG))

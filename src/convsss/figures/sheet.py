@@ -56,7 +56,7 @@ def contact_sheet(path, title, displays, captions, columns, footer=""):
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from ..image import _atomic_write
+    from ..files import atomic_write
 
     n = len(displays)
     columns = max(1, min(columns, n))
@@ -81,7 +81,7 @@ def contact_sheet(path, title, displays, captions, columns, footer=""):
     if footer:
         fig.text(0.5, 0.08 / height, footer, ha="center", va="bottom", fontsize=6, color="0.3")
     try:
-        return _atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=160, facecolor="white"))
+        return atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=160, facecolor="white"))
     finally:
         plt.close(fig)
 
@@ -93,12 +93,12 @@ def plot(path, draw, size=(6.0, 3.0)):
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from ..image import _atomic_write
+    from ..files import atomic_write
 
     fig = plt.figure(figsize=size)
     try:
         draw(fig)
         fig.tight_layout()
-        return _atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=130))
+        return atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=130))
     finally:
         plt.close(fig)
