@@ -188,8 +188,6 @@ class ConvolutionTransport(Transport):
     correction : {"none", "plane"}
         ``none``: the paper's method. ``plane``: add the local-plane correction (:mod:`.correction`) wherever
         :meth:`exitance` is given the query normals.
-    neighbours : int
-        Samples (with normals facing the query's) averaged for the irradiance ``E_q`` of the plane correction.
     memory_limit : int, optional
         Refuse grids whose estimated memory exceeds this many bytes (default: 75 % of available memory).
     kernel_tail : float
@@ -201,8 +199,7 @@ class ConvolutionTransport(Transport):
     name = "convolution"
 
     def __init__(self, samples, profile, frame, layers=8, cell_size=None, resolution=None, downsample=1.0,
-                 threshold=1e-3, splat="linear", correction="none", neighbours=8, memory_limit=None, kernel_tail=1e-4,
-                 workers=-1):
+                 threshold=1e-3, splat="linear", correction="none", memory_limit=None, kernel_tail=1e-4, workers=-1):
         super().__init__(samples, profile)
         if not isinstance(frame, ViewFrame):
             raise ConvsssError("the convolution transport needs the camera's ViewFrame (frame=...)")
@@ -211,8 +208,7 @@ class ConvolutionTransport(Transport):
             raise ConvsssError(f"correction={correction!r} is not allowed: choose one of {', '.join(CORRECTIONS)}")
         if correction == "plane" and samples.normal is None:
             raise ConvsssError("the plane correction needs the samples' normals")
-        self.correction, self.neighbours = correction, int(neighbours)
-        self._tree = None
+        self.correction = correction
         self.frame, self.workers = frame, workers
         self.threshold, self.splat, self.downsample = float(threshold), splat, float(downsample)
 
@@ -240,6 +236,7 @@ class ConvolutionTransport(Transport):
         if correction == "plane" and self.n_layers > 1:
             with self.timings("correction"):
                 self._response = cached_plane_response(profile, profile_key(table), self.dz, splat)
+                self._irradiance_grids = self._splat_irradiance()
         with self.timings("forward_fft"):
             sources = grid if len(self.source_layers) == self.n_layers else grid[self.source_layers]
             self._phi_hat = scipy.fft.rfft2(sources, workers=workers, overwrite_x=True)
@@ -286,13 +283,14 @@ class ConvolutionTransport(Transport):
 
     def _memory_estimate(self):
         """Bytes held at the peak: the splat grid, source spectra, kernel spectra, one batch of output spectra and
-        its inverse, and the exitance layers."""
+        its inverse, the exitance layers, and the plane correction's four irradiance grids."""
         py, px = self.padded_shape
         n = self.n_layers
         spatial = n * 3 * py * px * 4
         spectrum = n * 3 * py * (px // 2 + 1)
-        return int(spatial + spectrum * 8 + spectrum * 4 + spectrum * 8 + spatial
-                   + n * 3 * self.grid_shape[0] * self.grid_shape[1] * 4)
+        layers = n * 3 * self.grid_shape[0] * self.grid_shape[1] * 4
+        return int(spatial + spectrum * 8 + spectrum * 4 + spectrum * 8 + spatial + layers
+                   + (4 * layers if self.correction == "plane" else 0))
 
     def compute_layers(self, layers):
         """Exitance images of ``layers`` (those not computed yet): mixing per frequency, then inverse FFTs."""
@@ -327,21 +325,39 @@ class ConvolutionTransport(Transport):
                                  self.profile.total_reflectance)
         return out
 
-    def nearby_irradiance(self, points, normals):
-        """``E_q``: inverse-square-distance average of the irradiance of the ``neighbours`` nearest samples whose
-        normals face the same way (``n_s . n_q > 0.5``); 0 where none does."""
-        from scipy.spatial import cKDTree
+    def _splat_irradiance(self):
+        """Per side (facing the camera or away), ``sum w E_i A_i`` and ``sum w A_i`` on the layer grid, splatted
+        with the exitance lookup's weights: their ratio at a point is the local irradiance ``E_q``."""
+        facing = self.samples.normal @ self.frame.forward < 0
+        area = np.repeat(self.samples.area[:, None], 3, axis=1)
+        grids = []
+        for side in (True, False):
+            chosen = np.flatnonzero(facing == side)
+            pair = []
+            for weight in (self.samples.flux, area):
+                grid = np.zeros((self.n_layers, 3) + self.grid_shape, dtype=np.float32)
+                _splat(np.ascontiguousarray(self._view[chosen]), np.ascontiguousarray(weight[chosen]), self.x0,
+                       self.y0, self.cell, self.z0, self.dz, self.n_layers, False, grid)
+                pair.append(grid)
+            grids.append(tuple(pair))
+        return grids
 
-        if self._tree is None:
-            self._tree = cKDTree(self.samples.position)
-        k = min(self.neighbours, len(self.samples))
-        distance, index = self._tree.query(points, k=k, workers=-1)
-        distance, index = distance.reshape(len(points), k), index.reshape(len(points), k)
-        facing = np.einsum("kj,kij->ki", normals, self.samples.normal[index]) > 0.5
-        weight = facing / (distance**2 + 1e-12 * self.cell**2)
-        total = weight.sum(axis=1, keepdims=True)
-        mixed = np.einsum("ki,kic->kc", weight, self.samples.irradiance[index])
-        return np.divide(mixed, total, out=np.zeros_like(mixed), where=total > 0)
+    def nearby_irradiance(self, points, normals):
+        """``E_q``: the area-weighted irradiance of the samples around each point on its side of the surface (facing
+        the camera or away, so the two sides of a thin part do not mix), read from the layer grid as ``M`` is."""
+        view = self.frame.to_view(points)
+        facing = normals @ self.frame.forward < 0
+        out = np.zeros((len(points), 3))
+        for side, (flux_grid, area_grid) in zip((True, False), self._irradiance_grids):
+            chosen = np.flatnonzero(facing == side)
+            if len(chosen) == 0:
+                continue
+            at = np.ascontiguousarray(view[chosen])
+            flux, area = np.empty((len(chosen), 3)), np.empty((len(chosen), 3))
+            _lookup(at, self.x0, self.y0, self.cell, self.z0, self.dz, self.n_layers, flux_grid, flux)
+            _lookup(at, self.x0, self.y0, self.cell, self.z0, self.dz, self.n_layers, area_grid, area)
+            out[chosen] = np.divide(flux, area, out=np.zeros_like(flux), where=area > 0)
+        return out
 
     def layer_image(self, layer):
         """The exitance image ``M_l`` (3, H, W) of one layer, computing it if needed."""

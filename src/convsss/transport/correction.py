@@ -19,7 +19,9 @@ with ``alpha`` and ``beta`` the depth weights of source and receiver and ``Lambd
 the profile integrated along a line at distance ``d``. The corrected exitance adds what the layers miss for a
 locally uniform irradiance ``E_q`` around the receiver:
 
-    M = M_layers + R_total (1 - C(cos_theta, w)) E_q.
+    M = M_layers + R_total (1 - C(cos_theta, w)) E_q,
+
+``E_q`` being the area-weighted irradiance of the samples around the receiver on its side of the surface.
 
 It is exact for a uniformly lit plane of any orientation at any depth, leaves far-field light (e.g. light through a
 thin back-lit part, where ``E_q`` is small) as the layers compute it, and is an approximation where the irradiance
