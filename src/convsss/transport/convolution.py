@@ -203,14 +203,12 @@ class ConvolutionTransport(Transport):
         super().__init__(samples, profile)
         if not isinstance(frame, ViewFrame):
             raise ConvsssError("the convolution transport needs the camera's ViewFrame (frame=...)")
-        self._check_parameters(layers, cell_size, resolution, downsample, threshold, splat)
-        if correction not in CORRECTIONS:
-            raise ConvsssError(f"correction={correction!r} is not allowed: choose one of {', '.join(CORRECTIONS)}")
+        self._check_parameters(layers, cell_size, resolution, downsample, threshold, splat, correction)
         if correction == "plane" and samples.normal is None:
             raise ConvsssError("the plane correction needs the samples' normals")
-        self.correction = correction
         self.frame, self.workers = frame, workers
         self.threshold, self.splat, self.downsample = float(threshold), splat, float(downsample)
+        self.correction = correction
 
         with self.timings("splat"):
             self._view = frame.to_view(samples.position)
@@ -245,7 +243,7 @@ class ConvolutionTransport(Transport):
         self.computed = np.zeros(self.n_layers, dtype=bool)
 
     @staticmethod
-    def _check_parameters(layers, cell_size, resolution, downsample, threshold, splat):
+    def _check_parameters(layers, cell_size, resolution, downsample, threshold, splat, correction):
         if int(layers) != layers or layers < 1:
             raise ConvsssError(f"layers={layers!r} is not allowed: it must be an integer >= 1")
         if cell_size is not None and resolution is not None:
@@ -260,6 +258,8 @@ class ConvolutionTransport(Transport):
             raise ConvsssError(f"threshold={threshold!r} is not allowed: it must lie in [0, 1)")
         if splat not in SPLATS:
             raise ConvsssError(f"splat={splat!r} is not allowed: choose one of {', '.join(SPLATS)}")
+        if correction not in CORRECTIONS:
+            raise ConvsssError(f"correction={correction!r} is not allowed: choose one of {', '.join(CORRECTIONS)}")
 
     def _setup_grid(self, layers, cell_size, resolution, profile, kernel_tail):
         lo, hi = self._view.min(axis=0), self._view.max(axis=0)
