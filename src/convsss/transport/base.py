@@ -40,13 +40,19 @@ class Transport:
                 raise ValueError(f"{len(points)} query points need {len(points)} normals, got {len(normals)}")
         self._prepare(points)
         with self.timings("lookup"):
-            return self._exitance(points, normals)
+            out = self._exitance(points)
+        if normals is not None:
+            self._correct(points, normals, out)
+        return out
 
     def _prepare(self, points):
         """Work a query needs before the lookup itself (timed by the transport under its own stage names)."""
 
-    def _exitance(self, points, normals):
+    def _exitance(self, points):
         raise NotImplementedError
+
+    def _correct(self, points, normals, exitance):
+        """Adjust ``exitance`` in place using the query normals (timed by the transport); nothing by default."""
 
     @property
     def stats(self):

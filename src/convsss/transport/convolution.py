@@ -75,12 +75,12 @@ def _bucket_by_layer(view, z0, dz, n_layers):
 
 @numba.njit(parallel=True, cache=True)
 def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
-    """Add each sample's flux to 4 cells x 2 layers of ``grid`` (n_l, 3, Py, Px); return the flux each layer got.
+    """Add each sample's flux (N, C) to 4 cells x 2 layers of ``grid`` (n_l, C, Py, Px); return each layer's total.
 
     One thread per output layer, each reading the samples bucketed below and above it in a fixed order, so the
     result is the same bit for bit whatever the thread count.
     """
-    height, width = grid.shape[2], grid.shape[3]
+    channels, height, width = grid.shape[1], grid.shape[2], grid.shape[3]
     order, starts = _bucket_by_layer(view, z0, dz, n_layers)
     deposited = np.zeros(n_layers)
     for layer in numba.prange(n_layers):
@@ -100,12 +100,12 @@ def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
                 if half and n_layers > 1:
                     w_hi = 0.5
                 wl = w_hi if upper == 1 else 1.0 - w_hi
-                deposited[layer] += wl * (flux[k, 0] + flux[k, 1] + flux[k, 2])
+                deposited[layer] += wl * np.sum(flux[k])
                 for dj in range(2):
                     wy = fy if dj == 1 else 1.0 - fy
                     for di in range(2):
                         w = wl * wy * (fx if di == 1 else 1.0 - fx)
-                        for c in range(3):
+                        for c in range(channels):
                             grid[layer, c, j + dj, i + di] += w * flux[k, c]
     return deposited
 
@@ -130,8 +130,8 @@ def _mix(phi_hat, kernel_hat, out_layers, source_layers, keep, out):
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def _lookup(view, x0, y0, h, z0, dz, n_layers, exitance, out):
-    """Bilinear in x, y within the two bracketing layers of ``exitance`` (n_l, 3, H, W), linear in depth (Eq. 7)."""
-    height, width = exitance.shape[2], exitance.shape[3]
+    """Bilinear in x, y within the two bracketing layers of ``exitance`` (n_l, C, H, W), linear in depth (Eq. 7)."""
+    channels, height, width = exitance.shape[1], exitance.shape[2], exitance.shape[3]
     for k in numba.prange(view.shape[0]):
         gx = min(max((view[k, 0] - x0) / h, 0.0), width - 1.0)
         gy = min(max((view[k, 1] - y0) / h, 0.0), height - 1.0)
@@ -140,7 +140,7 @@ def _lookup(view, x0, y0, h, z0, dz, n_layers, exitance, out):
         fx = gx - i
         fy = gy - j
         lo, w_hi = _layer_of(view[k, 2], z0, dz, n_layers)
-        for c in range(3):
+        for c in range(channels):
             acc = 0.0
             for dl in range(2 if n_layers > 1 else 1):
                 wl = w_hi if dl == 1 else 1.0 - w_hi
@@ -283,14 +283,14 @@ class ConvolutionTransport(Transport):
 
     def _memory_estimate(self):
         """Bytes held at the peak: the splat grid, source spectra, kernel spectra, one batch of output spectra and
-        its inverse, the exitance layers, and the plane correction's four irradiance grids."""
+        its inverse, the exitance layers, and the plane correction's irradiance grids (2 sides x 4 channels)."""
         py, px = self.padded_shape
         n = self.n_layers
         spatial = n * 3 * py * px * 4
         spectrum = n * 3 * py * (px // 2 + 1)
         layers = n * 3 * self.grid_shape[0] * self.grid_shape[1] * 4
         return int(spatial + spectrum * 8 + spectrum * 4 + spectrum * 8 + spatial + layers
-                   + (4 * layers if self.correction == "plane" else 0))
+                   + (8 * layers // 3 if self.correction == "plane" else 0))
 
     def compute_layers(self, layers):
         """Exitance images of ``layers`` (those not computed yet): mixing per frequency, then inverse FFTs."""
@@ -312,51 +312,53 @@ class ConvolutionTransport(Transport):
         view = self.frame.to_view(points)
         self.compute_layers(np.flatnonzero(_needed_layers(view, self.z0, self.dz, self.n_layers)))
 
-    def _exitance(self, points, normals):
+    def _exitance(self, points):
         view = self.frame.to_view(points)
         out = np.empty((len(points), 3))
         _lookup(view, self.x0, self.y0, self.cell, self.z0, self.dz, self.n_layers, self._exitance_layers, out)
-        if self.correction == "plane" and normals is not None and self.n_layers > 1:
-            with self.timings("correction"):
-                depth = (view[:, 2] - self.z0) / self.dz
-                w = depth - np.clip(np.floor(depth), 0, self.n_layers - 2)
-                cos_theta = np.abs(normals @ self.frame.forward)
-                apply_correction(out, cos_theta, w, self.nearby_irradiance(points, normals), self._response,
-                                 self.profile.total_reflectance)
         return out
 
+    def _correct(self, points, normals, exitance):
+        """The plane correction (:mod:`.correction`): ``M += R_total (1 - C(cos_theta, w)) E_q``."""
+        if self.correction != "plane" or self.n_layers == 1:
+            return
+        with self.timings("correction"):
+            view = self.frame.to_view(points)
+            depth = (view[:, 2] - self.z0) / self.dz
+            w = depth - np.clip(np.floor(depth), 0, self.n_layers - 2)
+            cos_theta = np.abs(normals @ self.frame.forward)
+            apply_correction(exitance, cos_theta, w, self._nearby_irradiance(view, normals), self._response,
+                             self.profile.total_reflectance)
+
     def _splat_irradiance(self):
-        """Per side (facing the camera or away), ``sum w E_i A_i`` and ``sum w A_i`` on the layer grid, splatted
-        with the exitance lookup's weights: their ratio at a point is the local irradiance ``E_q``."""
+        """Per side (facing the camera or away), ``sum w E_i A_i`` (3 channels) and ``sum w A_i`` on the layer grid,
+        splatted with the exitance lookup's weights: their ratio at a point is the local irradiance ``E_q``."""
         facing = self.samples.normal @ self.frame.forward < 0
-        area = np.repeat(self.samples.area[:, None], 3, axis=1)
+        weights = np.concatenate([self.samples.flux, self.samples.area[:, None]], axis=1)
         grids = []
         for side in (True, False):
             chosen = np.flatnonzero(facing == side)
-            pair = []
-            for weight in (self.samples.flux, area):
-                grid = np.zeros((self.n_layers, 3) + self.grid_shape, dtype=np.float32)
-                _splat(np.ascontiguousarray(self._view[chosen]), np.ascontiguousarray(weight[chosen]), self.x0,
-                       self.y0, self.cell, self.z0, self.dz, self.n_layers, False, grid)
-                pair.append(grid)
-            grids.append(tuple(pair))
+            grid = np.zeros((self.n_layers, 4) + self.grid_shape, dtype=np.float32)
+            _splat(np.ascontiguousarray(self._view[chosen]), np.ascontiguousarray(weights[chosen]), self.x0, self.y0,
+                   self.cell, self.z0, self.dz, self.n_layers, False, grid)
+            grids.append(grid)
         return grids
 
-    def nearby_irradiance(self, points, normals):
-        """``E_q``: the area-weighted irradiance of the samples around each point on its side of the surface (facing
-        the camera or away, so the two sides of a thin part do not mix), read from the layer grid as ``M`` is."""
-        view = self.frame.to_view(points)
+    def _nearby_irradiance(self, view, normals):
+        """``E_q`` at points in view coordinates: the area-weighted irradiance of the samples around each point on
+        its side of the surface (facing the camera or away, so the two sides of a thin part do not mix), read from
+        the layer grid as ``M`` is."""
         facing = normals @ self.frame.forward < 0
-        out = np.zeros((len(points), 3))
-        for side, (flux_grid, area_grid) in zip((True, False), self._irradiance_grids):
+        out = np.zeros((len(view), 3))
+        for side, grid in zip((True, False), self._irradiance_grids):
             chosen = np.flatnonzero(facing == side)
             if len(chosen) == 0:
                 continue
-            at = np.ascontiguousarray(view[chosen])
-            flux, area = np.empty((len(chosen), 3)), np.empty((len(chosen), 3))
-            _lookup(at, self.x0, self.y0, self.cell, self.z0, self.dz, self.n_layers, flux_grid, flux)
-            _lookup(at, self.x0, self.y0, self.cell, self.z0, self.dz, self.n_layers, area_grid, area)
-            out[chosen] = np.divide(flux, area, out=np.zeros_like(flux), where=area > 0)
+            sums = np.empty((len(chosen), 4))
+            _lookup(np.ascontiguousarray(view[chosen]), self.x0, self.y0, self.cell, self.z0, self.dz, self.n_layers,
+                    grid, sums)
+            area = sums[:, 3:4]
+            out[chosen] = np.divide(sums[:, :3], area, out=np.zeros((len(chosen), 3)), where=area > 0)
         return out
 
     def layer_image(self, layer):

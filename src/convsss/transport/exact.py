@@ -62,6 +62,6 @@ class ExactTransport(Transport):
             self._r_max = self._r_scale * np.expm1(self._ds * (len(self._table) - 1))
         self._flux = np.ascontiguousarray(samples.flux)
 
-    def _exitance(self, points, normals):
+    def _exitance(self, points):
         return _direct_sum(points, self.samples.position, self._flux, self._r_scale, self._ds, self._table,
                            self._r_max)

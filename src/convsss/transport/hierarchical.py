@@ -134,7 +134,7 @@ class HierarchicalTransport(Transport):
         self._approximated = 0
         self._summed = 0
 
-    def _exitance(self, points, normals):
+    def _exitance(self, points):
         t = self.octree
         out, visited, approximated, summed = _traverse(
             points, self.epsilon, self._r_scale, self._ds, self._table, self._r_max, t.position, t.flux, t.start,
