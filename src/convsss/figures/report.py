@@ -102,7 +102,9 @@ def _plots(out, figures):
         made["fig2"] = plot(out / "fig2" / "fig2-plot.png", draw)
     fig = figures.get("fig5")
     if fig:
-        conv = [r for r in fig["panels"] if r["method"] == "convolution"]
+        conv = [r for r in fig["panels"]
+                if r["method"] == "convolution" and r["params"].get("correction", "none") == "none"]
+        plane = [r for r in fig["panels"] if r["method"] == "convolution" and r["params"].get("correction") == "plane"]
         hier = _by(fig, "hierarchical")
 
         def draw(f):
@@ -111,6 +113,11 @@ def _plots(out, figures):
             ax1.plot(n, [100 * r["vs_exact"]["mre"] for r in conv], "o-", label="convolution: err vs exact")
             ax1.plot(n, [100 * abs(1 - r["vs_exact"]["ratio"]) for r in conv], "s--",
                      label="convolution: |1 - ratio| vs exact")
+            if plane:
+                ax1.plot([r["params"]["layers"] for r in plane], [100 * r["vs_exact"]["mre"] for r in plane], "^-",
+                         label="+ plane correction: err vs exact")
+                ax2.plot([r["params"]["layers"] for r in plane], [r["sss_seconds"] for r in plane], "^-",
+                         label="+ plane correction (subsurface)")
             if hier:
                 ax1.axhline(100 * hier["vs_exact"]["mre"], color="k", lw=1, label="hierarchical: err vs exact")
             ax1.set_xscale("log", base=2)
