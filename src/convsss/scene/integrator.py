@@ -13,6 +13,7 @@
 Per-stage seconds and everything a user needs to judge the run are in :attr:`ConvsssIntegrator.stats`.
 """
 
+import inspect
 import math
 
 import drjit as dr
@@ -142,8 +143,6 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         p = self.params
         candidates = {"layers": p.layers, "cell_size": cell_full, "downsample": p.downsample,
                       "threshold": p.threshold, "splat": p.splat, "correction": p.correction}
-        import inspect
-
         accepted = inspect.signature(TRANSPORTS[p.transport]).parameters
         return {k: v for k, v in candidates.items() if k in accepted}
 
