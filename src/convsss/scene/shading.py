@@ -233,6 +233,9 @@ class Shader:
             lane_np = lane_np[keep]
             dr.eval(ray_o, ray_d, throughput, prev_p, prev_n, prev_pdf, prev_delta, lane)
             depth += 1
+        # Hand Mitsuba evaluated arrays: a path cut at max_depth leaves `total` scattered into but not evaluated, and
+        # Dr.Jit aborts on such a 'dirty' variable inside the film's kernel (seen with a box filter).
+        dr.eval(total, valid)
         return total, valid
 
     def _emission(self, si, prev_p, prev_n, prev_pdf, prev_delta, depth):
