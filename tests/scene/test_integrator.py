@@ -155,3 +155,15 @@ def test_hierarchical_and_exact_transports_plug_in(mi, sphere_scene):
 def test_bad_parameter_fails_at_load(mi, sphere_scene):
     with pytest.raises(Exception, match="layers=1"):
         mi.load_dict(sphere_scene(integrator={"layers": 1}))
+
+
+def test_cancelled_render_raises_instead_of_returning_a_partial_image(mi, sphere_scene):
+    """Ctrl-C during Mitsuba's render loop sets the integrator's stop flag (Mitsuba's SIGINT handler): the shading
+    loop ends and render() raises KeyboardInterrupt, so no command writes the unfinished image."""
+    scene = mi.load_dict(sphere_scene(res=24))
+    integrator = scene.integrator()
+    asked = []
+    integrator.should_stop = lambda: asked.append(True) or True
+    with pytest.raises(KeyboardInterrupt):
+        integrator.render(scene, scene.sensors()[0], spp=2)
+    assert asked

@@ -134,7 +134,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             per_object.append({**obj.summary(), "samples": n, "cell_size_mm": cell,
                                "pixel_footprint_mm": cell_full, "view_depth_mm": depth,
                                "flux": samples.flux.sum(axis=0).tolist()})
-        self._shader = Shader(scene, objects, transports, p)
+        self._shader = Shader(scene, objects, transports, p, stop=self.should_stop)
         self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object,
                       "samples": int(sum(o["samples"] for o in per_object))}
         return self._shader
@@ -177,6 +177,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                 dr.sync_thread()
         finally:
             self._nested = False
+        if self.should_stop():  # Mitsuba's SIGINT handler cancelled the render: no partial image leaves here
+            self._shader = None
+            raise KeyboardInterrupt
         self.stats["seconds"].update(timer)
         self.stats["film"] = {"size": [int(x) for x in film.size()], "crop_size": [int(x) for x in size],
                               "spp": int(spp_used)}

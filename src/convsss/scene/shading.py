@@ -59,10 +59,13 @@ class Shader:
     transports : list
         One transport per object (``exitance(points_mm) -> (K, 3)``).
     params : RenderParams
+    stop : callable, optional
+        Asked between bounces; when it returns True the paths end there (Ctrl-C during Mitsuba's render).
     """
 
-    def __init__(self, scene, objects, transports, params):
+    def __init__(self, scene, objects, transports, params, stop=None):
         self.scene, self.objects, self.transports, self.params = scene, objects, transports, params
+        self.stop = stop
         self.shape_object = {obj.shape_index: k for k, obj in enumerate(objects)}
         self.ctx = mi.BSDFContext()
         self.ctx_reflect = mi.BSDFContext()
@@ -100,12 +103,14 @@ class Shader:
         beta = _to_numpy3(dr.gather(mi.Color3f, throughput, chosen))
         value = np.zeros((len(hit), 3))
         for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
-            mask = which[hit] == k
-            if np.any(mask):
-                exitance = transport.exitance(points[mask], normals[mask] * obj.orientation)
-                transmit = fresnel_transmittance(obj.eta, cos_o[mask])
-                value[mask] = beta[mask] * exitance * (transmit / np.pi)[:, None]
-                self.lookups += int(mask.sum())
+            mine = np.flatnonzero(which[hit] == k)
+            for chunk in np.array_split(mine, max(1, -(-len(mine) // transport.query_batch))):
+                if len(chunk) == 0 or (self.stop is not None and self.stop()):
+                    continue
+                exitance = transport.exitance(points[chunk], normals[chunk] * obj.orientation)
+                transmit = fresnel_transmittance(obj.eta, cos_o[chunk])
+                value[chunk] = beta[chunk] * exitance * (transmit / np.pi)[:, None]
+                self.lookups += len(chunk)
         return hit, value
 
     def _phong(self, si, ray_d, eta, ds, light):
@@ -165,12 +170,14 @@ class Shader:
         prev_pdf = mi.Float(1.0)
         prev_delta = mi.Bool(True)
         max_depth = params.max_depth if params.max_depth > 0 else 2**31
-        valid = None
+        valid = dr.zeros(mi.Bool, n_lanes)
         depth = 0
         while len(lane_np) and depth < max_depth:
+            if self.stop is not None and self.stop():
+                break
             si = scene.ray_intersect(mi.Ray3f(ray_o, ray_d))
             dr.eval(si)
-            if valid is None:
+            if depth == 0:
                 valid = si.is_valid()
             contribution = self._emission(si, prev_p, prev_n, prev_pdf, prev_delta, depth) * throughput
             if depth + 1 >= max_depth:

@@ -20,6 +20,11 @@ class Transport:
 
     name = "transport"
 
+    @property
+    def query_batch(self):
+        """Query points per :meth:`exitance` call that keep a call short (a caller checks for Ctrl-C between calls)."""
+        return 1 << 16
+
     def __init__(self, samples, profile):
         if not isinstance(samples, IrradianceSamples):
             raise TypeError("samples must be an IrradianceSamples")
