@@ -167,3 +167,35 @@ def test_cancelled_render_raises_instead_of_returning_a_partial_image(mi, sphere
     with pytest.raises(KeyboardInterrupt):
         integrator.render(scene, scene.sensors()[0], spp=2)
     assert asked
+
+
+def _bar(mi, x, z_centre, length, material="wholemilk"):
+    """A translucent bar along the view axis (z), 1 mm thick, centred at (x, 4, z_centre)."""
+    from convsss.scene.materials import translucent
+
+    to_world = mi.ScalarTransform4f().translate([x, 4.0, z_centre]).scale([0.5, 0.5, length / 2])
+    return translucent({"type": "cube", "to_world": to_world}, convsss.material(material), boundary="null")
+
+
+def test_visibility_is_decided_by_what_the_camera_sees(mi, sphere_scene, object_mask):
+    """The sphere's camera sits at z = 16 looking down -z. A bar whose centre is behind the camera but whose front
+    half is in view renders; a bar wholly behind the camera is skipped with a note; neither stops the render."""
+    scene_dict = sphere_scene(extra={"long": _bar(mi, 1.5, 20.0, 24.0), "hidden": _bar(mi, 0.0, 30.0, 4.0, "skimmilk")})
+    with pytest.warns(UserWarning, match="'hidden' is not visible from the camera"):
+        scene, image = _render(mi, scene_dict)
+    stats = scene.integrator().stats
+    assert [o["name"] for o in stats["objects"]] == ["object", "long"] and stats["hidden"] == ["hidden"]
+    mask = object_mask(scene)
+    assert np.all(np.isfinite(image)) and np.all(image[mask].mean(axis=0) > 0)
+
+
+def test_camera_inside_an_object_or_no_camera_is_refused(mi, sphere_scene, tmp_path):
+    scene = mi.load_dict(sphere_scene(extra={"around": _bar(mi, 0.0, 16.0, 4.0)}))
+    with pytest.raises(convsss.ConvsssError, match="camera is inside translucent shape 'around'"):
+        scene.integrator().render(scene, scene.sensors()[0])
+    scene_dict = sphere_scene()
+    scene_dict["sensor"] = {"type": "irradiancemeter", "film": {"type": "hdrfilm", "width": 1, "height": 1}}
+    scene_dict["object"]["sensor"] = scene_dict.pop("sensor")
+    scene = mi.load_dict(scene_dict)
+    with pytest.raises(convsss.ConvsssError, match="renders through a camera"):
+        scene.integrator().render(scene, scene.sensors()[0])

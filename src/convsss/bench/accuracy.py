@@ -99,7 +99,7 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0):
     import drjit as dr
 
     from ..backend import load_mitsuba
-    from ..scene.integrator import sensor_frame
+    from ..scene.camera import sensor_frame
     from ..scene.loading import load_scene
     from ..scene.params import RenderParams
 

@@ -15,16 +15,18 @@ Per-stage seconds and everything a user needs to judge the run are in :attr:`Con
 
 import inspect
 import math
+import warnings
 
 import drjit as dr
 import numpy as np
 
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
-from ..samples import IrradianceSamples, ViewFrame
+from ..samples import IrradianceSamples
 from ..timing import StageTimer
 from ..transport import TRANSPORTS, make_transport
 from ..transport.convolution import available_memory
+from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
 from .irradiance import sample_surface, surface_irradiance
 from .objects import find_translucent_objects
 from .params import RenderParams
@@ -32,35 +34,14 @@ from .shading import Shader
 
 mi = load_mitsuba()
 
+class VisibilityWarning(UserWarning):
+    """A translucent object is not seen by the camera and is skipped."""
+
+
 #: Bytes per path of one wavefront (ray, interaction, BSDF sample, throughput, lanes): measured order of magnitude.
 BYTES_PER_PATH = 600
 #: Bytes per surface sample while its irradiance is computed and the transport is built.
 BYTES_PER_SAMPLE = 400
-
-
-def sensor_frame(sensor, unit_mm):
-    """The camera's :class:`ViewFrame` in mm."""
-    matrix = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4)
-    matrix[:3, 3] *= unit_mm
-    return ViewFrame.from_matrix(matrix)
-
-
-def pixel_footprint(sensor, frame, depth_mm, unit_mm):
-    """Width (mm) of one pixel at view depth ``depth_mm``, from two rays through neighbouring film positions.
-
-    Works for any projective sensor (perspective, thin lens, orthographic).
-    """
-    size = sensor.film().crop_size()
-    centre = [0.5, 0.5]
-    step = [0.5 + 1.0 / size[0], 0.5]
-    points = []
-    for position in (centre, step):
-        ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(*position), mi.Point2f(0.5, 0.5))
-        o = np.array(ray.o, dtype=np.float64).reshape(3) * unit_mm
-        d = np.array(ray.d, dtype=np.float64).reshape(3)
-        t = (depth_mm - frame.to_view(o[None])[0, 2]) / float(d @ frame.forward)
-        points.append(o + t * d)
-    return float(np.linalg.norm(points[1] - points[0]))
 
 
 def _seed(seed):
@@ -102,13 +83,25 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         self._stage("samples")
         with timer("samples"):
             objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile)
-        frame = sensor_frame(sensor, p.unit_mm)
-        transports, per_object = [], []
-        for k, obj in enumerate(objects):
-            centre = 0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1])
-            depth = float(frame.to_view(centre[None])[0, 2])
-            if depth <= 0:
-                raise ConvsssError(f"translucent shape {obj.name!r} is behind the camera (view depth {depth:.4g} mm)")
+            check_camera(sensor)
+            frame = sensor_frame(sensor, p.unit_mm)
+            seen = first_hits(scene, sensor, frame, p.unit_mm, [obj.shape_index for obj in objects])
+        transports, per_object, shown, hidden = [], [], [], []
+        for k, (obj, (depths, from_behind)) in enumerate(zip(objects, seen)):
+            seen_from_inside = from_behind == (obj.orientation > 0)  # against the outward normal
+            if len(depths) and seen_from_inside.mean() > 0.5:
+                raise ConvsssError(f"the camera is inside translucent shape {obj.name!r}: the diffusion model renders "
+                                   "objects seen from outside; move the camera out of it")
+            if len(depths) == 0:
+                warnings.warn(f"translucent shape {obj.name!r} is not visible from the camera: skipped (its light on "
+                              "other surfaces is not rendered)", VisibilityWarning, stacklevel=3)
+                hidden.append(obj.name)
+                continue
+            shown.append(obj)
+            # The layer cell is a pixel's footprint at the object's bounding-box centre, or, for a centre behind the
+            # camera, at the median depth of its visible points.
+            depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
+            depth = depth if depth > 0 else float(np.median(depths))
             cell_full = pixel_footprint(sensor, frame, depth, p.unit_mm)
             cell = cell_full / p.downsample
             count = max(64, math.ceil(p.sample_density * obj.area_mm2 / cell**2))
@@ -134,8 +127,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             per_object.append({**obj.summary(), "samples": n, "cell_size_mm": cell,
                                "pixel_footprint_mm": cell_full, "view_depth_mm": depth,
                                "flux": samples.flux.sum(axis=0).tolist()})
-        self._shader = Shader(scene, objects, transports, p, stop=self.should_stop)
-        self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object,
+        self._shader = Shader(scene, shown, transports, p, stop=self.should_stop)
+        self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object, "hidden": hidden,
                       "samples": int(sum(o["samples"] for o in per_object))}
         return self._shader
 

@@ -1,0 +1,90 @@
+"""What the camera sees: its view frame, a pixel's footprint, and which translucent objects are visible.
+
+The convolution's layers are perpendicular to the camera's view axis and its cells are a pixel's footprint at the
+object (paper §4.2, §5), so the renderer needs a projective camera (``perspective``, ``thinlens``,
+``orthographic``). Which objects to build a transport for is decided by what the camera sees: one ray through
+every pixel centre of the crop window; an object that none of them hits first is not rendered (a note says so),
+whatever its bounding box does.
+"""
+
+import drjit as dr
+import numpy as np
+
+from ..backend import load_mitsuba
+from ..errors import ConvsssError
+from ..samples import ViewFrame
+
+mi = load_mitsuba()
+
+#: Camera rays traced at once when finding what is visible.
+RAYS_PER_BATCH = 1 << 20
+
+
+def check_camera(sensor):
+    """A one-line error unless ``sensor`` is a projective camera (the layers need an image plane)."""
+    if not isinstance(sensor, mi.ProjectiveCamera):
+        raise ConvsssError(f"the convsss integrator renders through a camera (perspective, thinlens, orthographic); "
+                           f"this scene's sensor is a {sensor.class_name()!r}")
+
+
+def sensor_frame(sensor, unit_mm):
+    """The camera's :class:`ViewFrame` in mm."""
+    matrix = np.array(sensor.world_transform().matrix, dtype=np.float64).reshape(4, 4)
+    matrix[:3, 3] *= unit_mm
+    return ViewFrame.from_matrix(matrix)
+
+
+def pixel_footprint(sensor, frame, depth_mm, unit_mm):
+    """Width (mm) of one pixel at view depth ``depth_mm``, from two rays through neighbouring film positions.
+
+    Works for any projective sensor (perspective, thin lens, orthographic).
+    """
+    size = sensor.film().crop_size()
+    centre = [0.5, 0.5]
+    step = [0.5 + 1.0 / size[0], 0.5]
+    points = []
+    for position in (centre, step):
+        ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(*position), mi.Point2f(0.5, 0.5))
+        o = np.array(ray.o, dtype=np.float64).reshape(3) * unit_mm
+        d = np.array(ray.d, dtype=np.float64).reshape(3)
+        t = (depth_mm - frame.to_view(o[None])[0, 2]) / float(d @ frame.forward)
+        points.append(o + t * d)
+    return float(np.linalg.norm(points[1] - points[0]))
+
+
+def first_hits(scene, sensor, frame, unit_mm, shape_indices):
+    """Where each shape is the first surface seen, over one ray per pixel centre of the crop window.
+
+    Parameters
+    ----------
+    scene, sensor : mitsuba.Scene, mitsuba.Sensor
+    frame : ViewFrame
+    unit_mm : float
+    shape_indices : list of int
+        Registry indices of the shapes asked about (what a ``ShapePtr`` lane holds).
+
+    Returns
+    -------
+    list of (numpy.ndarray, numpy.ndarray)
+        Per shape, the view depths (mm) of those pixel centres (empty: not visible) and whether the ray meets the
+        surface from the side its normal points away from (``n . d > 0``).
+    """
+    film = sensor.film()
+    size, offset, crop = film.size(), film.crop_offset(), film.crop_size()
+    found = [([], []) for _ in shape_indices]
+    rows = max(1, RAYS_PER_BATCH // int(crop[0]))
+    for first in range(0, int(crop[1]), rows):
+        y, x = np.mgrid[first:min(first + rows, int(crop[1])), 0:int(crop[0])]
+        u = ((offset[0] + x.ravel() + 0.5) / size[0]).astype(np.float32)
+        v = ((offset[1] + y.ravel() + 0.5) / size[1]).astype(np.float32)
+        ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(u, v), mi.Point2f(0.5, 0.5))
+        si = scene.ray_intersect(ray)
+        hit = si.is_valid().numpy()
+        ids = dr.reinterpret_array(mi.UInt32, si.shape).numpy()
+        depth = frame.to_view(dr.ravel(si.p).numpy().reshape(-1, 3).astype(np.float64) * unit_mm)[:, 2]
+        away = (dr.dot(si.n, ray.d) > 0).numpy()
+        for (depths, aways), index in zip(found, shape_indices):
+            mine = hit & (ids == index)
+            depths.append(depth[mine])
+            aways.append(away[mine])
+    return [(np.concatenate(depths), np.concatenate(aways)) for depths, aways in found]
