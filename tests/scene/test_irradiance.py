@@ -13,8 +13,8 @@ def irr(mi):
 
 
 def _points(irr, scene, count=2000, seed=1):
-    p, n, size = irr.sample_surface(scene.shapes()[0], count, seed)
-    return p, n, size, dr.ravel(p).numpy().reshape(-1, 3).astype(np.float64)
+    p, n, area = irr.sample_surface(scene.shapes()[0], count, seed)
+    return p, n, dr.width(area), dr.ravel(p).numpy().reshape(-1, 3).astype(np.float64)
 
 
 def test_stratified_points_cover_the_sphere_uniformly(mi, irr):

@@ -77,3 +77,76 @@ def test_wrong_units_warn(mi):
         _objects(mi, {"s": translucent({"type": "sphere", "radius": 1e6}, skin)})
     with pytest.warns(UnitsWarning, match="unit_mm"):
         _objects(mi, {"s": translucent({"type": "sphere", "radius": 1e-4}, skin)})
+
+
+def _instances(mi, shape, transforms):
+    """A shapegroup ``g`` holding the translucent ``shape`` and an opaque cube, drawn by one instance per transform."""
+    group = {"type": "shapegroup", "s": translucent(shape, convsss.material("skin1")), "c": {"type": "cube"}}
+    return {"g": group, **{f"i{k}": {"type": "instance", "shapegroup": {"type": "ref", "id": "g"}, "to_world": t}
+                           for k, t in enumerate(transforms)}}
+
+
+def test_each_instance_is_an_object(mi):
+    T = mi.ScalarTransform4f
+    objects = _objects(mi, _instances(mi, {"type": "sphere"}, [T().translate([-3, 0, 0]), T().translate([3, 0, 0])]))
+    assert [o.name for o in objects] == ["i0/s", "i1/s"]
+    a, b = objects
+    assert a.shape_index == b.shape_index and 0 < a.instance_index != b.instance_index
+    np.testing.assert_allclose(a.bbox_mm, [[-4, -1, -1], [-2, 1, 1]], atol=1e-6)
+    np.testing.assert_allclose(b.bbox_mm, [[2, -1, -1], [4, 1, 1]], atol=1e-6)
+    assert a.area_mm2 == pytest.approx(4 * np.pi, rel=1e-5) and b.area_mm2 == pytest.approx(4 * np.pi, rel=1e-5)
+
+
+def test_scaled_instance_has_the_ellipsoids_area_and_outward_normals(mi):
+    """A unit sphere instanced with scale (-2, 1, 1) (stretched and mirrored) is a prolate spheroid, semi-axes a = 2,
+    b = 1: area ``2 pi b^2 (1 + a/(b e) asin e)``, ``e = sqrt(1 - b^2/a^2)``; outward normal along
+    ``(x/a^2, y/b^2, z/b^2)``."""
+    from convsss.scene.irradiance import sample_surface
+
+    T = mi.ScalarTransform4f
+    (obj,) = _objects(mi, _instances(mi, {"type": "sphere"}, [T().translate([5, 0, 0]).scale([-2, 1, 1])]),
+                      unit_mm=0.5)
+    e = np.sqrt(1 - 1 / 4)
+    spheroid = 2 * np.pi * (1 + 2 / e * np.arcsin(e))
+    assert obj.area_mm2 == pytest.approx(spheroid * 0.25, rel=1e-4)
+    np.testing.assert_allclose(obj.bbox_mm, np.array([[3, -1, -1], [7, 1, 1]]) * 0.5, atol=1e-6)
+    position, normal, area = sample_surface(obj.shape, 4096, seed=1, to_world=obj.to_world)
+    assert float(np.sum(area.numpy(), dtype=np.float64)) == pytest.approx(spheroid, rel=1e-3)
+    p = np.asarray(position.numpy(), dtype=np.float64).T - [5, 0, 0]
+    n = np.asarray(normal.numpy(), dtype=np.float64).T
+    gradient = p / [4, 1, 1]
+    np.testing.assert_allclose(n, gradient / np.linalg.norm(gradient, axis=1)[:, None], atol=1e-4)
+
+
+def test_unknown_instance_description_is_a_clear_error():
+    from convsss.scene.objects import shapegroup_id
+
+    class Described:
+        def id(self):
+            return "i"
+
+        def __str__(self):
+            return "Instance[]"
+
+    with pytest.raises(ConvsssError, match="cannot tell which shapegroup"):
+        shapegroup_id(Described())
+
+
+@pytest.mark.parametrize("inverted", [False, True])
+def test_stretched_mirrored_mesh_instance(mi, tmp_path, inverted):
+    """The unit cube mesh (smooth vertex normals, computed by Mitsuba) instanced with scale (-2, 1, 1): area
+    2 (2 + 2 + 1) = 10 from the faces' geometric normals (the interpolated ones gave 10.29), outward sample normals
+    whether the mesh is wound outwards or inwards."""
+    from convsss.scene.irradiance import sample_surface
+
+    faces = [" ".join(reversed(f.split())) for f in CUBE_FACES] if inverted else CUBE_FACES
+    place = mi.ScalarTransform4f().scale([-2, 1, 1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MeshWarning)
+        (obj,) = _objects(mi, _instances(mi, _obj(tmp_path / "cube.obj", faces), [place]))
+    assert obj.orientation == (-1.0 if inverted else 1.0)
+    assert obj.area_mm2 == pytest.approx(10.0, rel=2e-3)
+    np.testing.assert_allclose(obj.bbox_mm, [[-2, 0, 0], [0, 1, 1]], atol=1e-6)
+    position, normal, _ = sample_surface(obj.shape, 1024, seed=1, orientation=obj.orientation, to_world=obj.to_world)
+    outward = np.asarray(position.numpy(), dtype=np.float64).T - [-1, 0.5, 0.5]
+    assert np.all(np.einsum("ij,ij->i", np.asarray(normal.numpy()).T, outward) > 0)

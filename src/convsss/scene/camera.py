@@ -52,26 +52,26 @@ def pixel_footprint(sensor, frame, depth_mm, unit_mm):
     return float(np.linalg.norm(points[1] - points[0]))
 
 
-def first_hits(scene, sensor, frame, unit_mm, shape_indices):
-    """Where each shape is the first surface seen, over one ray per pixel centre of the crop window.
+def first_hits(scene, sensor, frame, unit_mm, objects):
+    """Where each object is the first surface seen, over one ray per pixel centre of the crop window.
 
     Parameters
     ----------
     scene, sensor : mitsuba.Scene, mitsuba.Sensor
     frame : ViewFrame
     unit_mm : float
-    shape_indices : list of int
-        Registry indices of the shapes asked about (what a ``ShapePtr`` lane holds).
+    objects : list of TranslucentObject
+        The shapes asked about, each identified by its (instance, shape) registry indices.
 
     Returns
     -------
     list of (numpy.ndarray, numpy.ndarray)
-        Per shape, the view depths (mm) of those pixel centres (empty: not visible) and whether the ray meets the
+        Per object, the view depths (mm) of those pixel centres (empty: not visible) and whether the ray meets the
         surface from the side its normal points away from (``n . d > 0``).
     """
     film = sensor.film()
     size, offset, crop = film.size(), film.crop_offset(), film.crop_size()
-    found = [([], []) for _ in shape_indices]
+    found = [([], []) for _ in objects]
     rows = max(1, RAYS_PER_BATCH // int(crop[0]))
     for first in range(0, int(crop[1]), rows):
         y, x = np.mgrid[first:min(first + rows, int(crop[1])), 0:int(crop[0])]
@@ -80,11 +80,12 @@ def first_hits(scene, sensor, frame, unit_mm, shape_indices):
         ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(u, v), mi.Point2f(0.5, 0.5))
         si = scene.ray_intersect(ray)
         hit = si.is_valid().numpy()
-        ids = dr.reinterpret_array(mi.UInt32, si.shape).numpy()
+        shapes = dr.reinterpret_array(mi.UInt32, si.shape).numpy()
+        instances = dr.reinterpret_array(mi.UInt32, si.instance).numpy()
         depth = frame.to_view(dr.ravel(si.p).numpy().reshape(-1, 3).astype(np.float64) * unit_mm)[:, 2]
         away = (dr.dot(si.n, ray.d) > 0).numpy()
-        for (depths, aways), index in zip(found, shape_indices):
-            mine = hit & (ids == index)
+        for (depths, aways), obj in zip(found, objects):
+            mine = hit & (shapes == obj.shape_index) & (instances == obj.instance_index)
             depths.append(depth[mine])
             aways.append(away[mine])
     return [(np.concatenate(depths), np.concatenate(aways)) for depths, aways in found]

@@ -85,7 +85,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile)
             check_camera(sensor)
             frame = sensor_frame(sensor, p.unit_mm)
-            seen = first_hits(scene, sensor, frame, p.unit_mm, [obj.shape_index for obj in objects])
+            seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
         transports, per_object, shown, hidden = [], [], [], []
         for k, (obj, (depths, from_behind)) in enumerate(zip(objects, seen)):
             seen_from_inside = from_behind == (obj.orientation > 0)  # against the outward normal
@@ -110,7 +110,10 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                                "lower sample_density, or use downsample 0.5 or 0.25")
             self._stage("samples")
             with timer("samples"):
-                position, normal, n = sample_surface(obj.shape, count, _seed(seed), obj.orientation, stream=k)
+                position, normal, area = sample_surface(obj.shape, count, _seed(seed), obj.orientation, stream=k,
+                                                        to_world=obj.to_world)
+                area_mm2 = area.numpy().astype(np.float64) * p.unit_mm**2
+                n = len(area_mm2)
                 position_mm = np.ascontiguousarray(dr.ravel(position).numpy().reshape(-1, 3), dtype=np.float64)
                 position_mm *= p.unit_mm
                 normal_np = dr.ravel(normal).numpy().reshape(-1, 3).astype(np.float64)
@@ -118,7 +121,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             with timer("irradiance"):
                 irradiance = surface_irradiance(scene, position, normal, obj.eta, p.irradiance_samples,
                                                 _seed(seed) + 7919 * k)
-                samples = IrradianceSamples(position_mm, np.full(n, obj.area_mm2 / n), irradiance, normal_np)
+                samples = IrradianceSamples(position_mm, area_mm2, irradiance, normal_np)
             self._stage("transport")
             with timer("transport"):
                 transport = make_transport(p.transport, samples, obj.profile, frame=frame,

@@ -2,7 +2,9 @@
 
 Points: ``N`` points uniformly distributed over the surface, front and back ("light is sampled from the front and
 the back", §4.1), stratified: a jittered ``k x k`` grid of ``[0,1]^2`` (``N = k^2``) is mapped through Mitsuba's
-``shape.sample_position`` (area-proportional), so each sample stands for the same area ``A_i = A / N``.
+``shape.sample_position`` (area-proportional), so each sample stands for the same area ``A_i = A / N``; an instanced
+shape is sampled in its shapegroup's space and mapped by the instance's transform, which scales ``A_i`` by the
+map's area element (:func:`sample_surface`).
 
 Irradiance, paper Eq. 2 with the incoming Fresnel transmittance,
 
@@ -43,16 +45,52 @@ def stratified_square(count, seed, stream=0):
     return mi.Point2f(u, v)
 
 
-def sample_surface(shape, count, seed, orientation=1.0, stream=0):
-    """About ``count`` stratified uniform points on ``shape``: ``(position, outward normal, n)`` in scene units.
+def sample_surface(shape, count, seed, orientation=1.0, stream=0, to_world=None):
+    """About ``count`` stratified uniform points on ``shape`` placed by the affine map ``to_world``:
+    ``(position, outward normal, area)`` in scene units, ``area`` the world area each sample stands for.
 
-    ``orientation`` (+1/-1) flips the shape's normals to point outwards.
+    ``to_world`` (4x4, identity when None) is an instance's transform: a plain shape's points are already in world
+    space, an instanced shape is sampled in its shapegroup's space. With ``M`` its linear part, points map by
+    ``to_world``, normals by ``M^{-T}`` (renormalized), and an area element with unit geometric normal ``g`` scales
+    by ``|det M| |M^{-T} g|``, so each of the ``N`` samples of a shape of area ``A`` covers
+
+        A_i = (A / N) |det M| |M^{-T} g_i|,
+
+    and ``sum_i A_i`` estimates the world area (exact for a similarity, e.g. the identity). ``orientation`` (+1/-1)
+    flips the shape's normals to point outwards; ``M^{-T}`` keeps them outward, also for a mirroring map
+    (``det M < 0``).
     """
+    matrix = np.identity(4) if to_world is None else np.asarray(to_world, dtype=np.float64)
+    transform = mi.Transform4f(matrix)
     u = stratified_square(count, seed, stream)
     ps = shape.sample_position(0.0, u)
-    normal = mi.Vector3f(ps.n) * orientation
-    dr.eval(ps.p, normal)
-    return ps.p, normal, dr.width(u)
+    position = transform @ mi.Point3f(ps.p)
+    normal = mi.Vector3f(dr.normalize(transform @ mi.Normal3f(ps.n * orientation)))
+    local_area = float(np.asarray(shape.surface_area()).reshape(-1)[0]) / dr.width(u)
+    stretch = dr.norm(transform @ mi.Normal3f(_geometric_normal(shape, u, ps.n, matrix[:3, :3])))
+    area = local_area * abs(float(np.linalg.det(matrix[:3, :3]))) * stretch
+    dr.eval(position, normal, area)
+    return position, normal, area
+
+
+def _geometric_normal(shape, u, normal, linear):
+    """The unit geometric normal at the points ``shape.sample_position(0, u)``, whose normals are ``normal``, as far
+    as the area element of ``linear`` depends on it.
+
+    A similarity (``M^T M = s^2 I``) scales every area element by ``s^2``: ``normal`` will do. So does the normal of
+    an analytic shape or of a mesh without vertex normals; a mesh with vertex normals interpolates them, so the same
+    points are drawn again from a copy of the mesh without them (same vertices and faces, same area PMF).
+    """
+    gram = linear.T @ linear
+    similarity = np.allclose(gram, np.trace(gram) / 3 * np.identity(3), rtol=0, atol=1e-6 * np.trace(gram))
+    if similarity or not (shape.is_mesh() and shape.has_vertex_normals()):
+        return normal
+    faceted = mi.Mesh("faceted", shape.vertex_count(), shape.face_count())
+    source, params = mi.traverse(shape), mi.traverse(faceted)
+    params["vertex_positions"] = source["vertex_positions"]
+    params["faces"] = source["faces"]
+    params.update()
+    return faceted.sample_position(0.0, u).n
 
 
 def _interaction(p, n):

@@ -8,8 +8,15 @@ coefficients are per scene unit; with ``u`` mm per unit,
     sigma_s' = sigma_s (1 - g)     (g of an ``hg`` phase function; 0 when isotropic).
 
 Every other shape is opaque. Lengths in :class:`TranslucentObject` are in mm.
+
+Instancing: each ``instance`` of a ``shapegroup`` that holds a translucent shape is a translucent object of its own
+(it sits elsewhere in the world, so it has its own samples, irradiance and transport). A ray that hits it reports the
+group's shape (shared by all instances) in ``si.shape`` and the instance in ``si.instance``, so an object is known by
+the pair ``(instance_index, shape_index)``, with ``instance_index = 0`` for a plain shape. Mitsuba forbids nested
+instancing, so one level is all there is.
 """
 
+import re
 import warnings
 from dataclasses import dataclass
 
@@ -18,11 +25,14 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material
 from ..profiles import TabulatedProfile
+from .irradiance import sample_surface
 
 #: Mitsuba class names of the boundaries a translucent object may have.
 BOUNDARY_CLASSES = {"Null": "null", "SmoothDielectric": "dielectric", "RoughDielectric": "roughdielectric"}
 #: The object may span at most / at least this many mean free paths before the units look wrong.
 SPAN_LIMITS = (1e-3, 1e6)
+#: Stratified samples that estimate the world area of an instanced shape (exact for a plain one).
+AREA_SAMPLES = 128 * 128
 
 
 class MeshWarning(UserWarning):
@@ -35,19 +45,21 @@ class UnitsWarning(UserWarning):
 
 @dataclass(eq=False)
 class TranslucentObject:
-    """One translucent shape, ready for sampling and transport.
+    """One translucent shape, or one instance of a translucent shape of a shapegroup, ready for sampling and transport.
 
     Attributes
     ----------
-    shape : mitsuba.Shape
-    name : str
+    shape : mitsuba.Shape        the shape; for an instance, the shapegroup's shape (in the group's space)
+    name : str                   the shape's id; ``instance/shape`` for an instanced one
     material : Material          coefficients in 1/mm, ``eta`` of the boundary
     boundary : str               ``null``, ``dielectric`` or ``roughdielectric``
     profile : Profile            the dipole of ``material``, or the user's tabulated profile
     shape_index : int            the shape's index in Mitsuba's registry (what ``si.shape`` holds per lane)
+    instance_index : int         the instance's index in that registry (what ``si.instance`` holds), 0 if none
+    to_world : (4, 4) array      the instance's transform (scene units), the identity for a plain shape
     orientation : float          +1 if the shape's normals point outwards, -1 if they point inwards
     bbox_mm : (2, 3) array       world-space bounding box in mm
-    area_mm2 : float             surface area in mm^2
+    area_mm2 : float             world surface area in mm^2
     """
 
     shape: object
@@ -56,6 +68,8 @@ class TranslucentObject:
     boundary: str
     profile: object
     shape_index: int
+    instance_index: int
+    to_world: np.ndarray
     orientation: float
     bbox_mm: np.ndarray
     area_mm2: float
@@ -125,7 +139,7 @@ def boundary_eta(mi, bsdf, name):
 
 
 def mesh_topology(mi, shape):
-    """``(watertight, signed_volume)`` of a mesh in its world space.
+    """``(watertight, signed_volume)`` of a mesh in its own space (the world's, or its shapegroup's).
 
     Vertices closer than 1e-7 of the mesh's extent are merged first (loaders split vertices at normal or texture
     seams). Watertight: every edge joins exactly two faces. The signed volume ``sum_f v0 . (v1 x v2) / 6`` is
@@ -180,31 +194,102 @@ def shape_index(mi, shape):
     return int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
 
 
+def shapegroup_id(instance):
+    """The id of the shapegroup that a Mitsuba ``instance`` draws.
+
+    Mitsuba 3 has no accessor for it; the instance's description names it (``Instance[ shapegroup = ShapeGroup[
+    name = "group", ...``), so it is read from there, with a one-line error if that format ever changes.
+    """
+    match = re.search(r'shapegroup\s*=\s*ShapeGroup\[\s*name\s*=\s*"([^"]*)"', str(instance))
+    if match is None:
+        raise ConvsssError(f"instance {instance.id()!r}: cannot tell which shapegroup it draws (Mitsuba's "
+                           "description of an instance has no 'shapegroup = ShapeGroup[ name = ...'); instanced "
+                           "translucent shapes need a Mitsuba version that describes instances that way")
+    return match.group(1)
+
+
+def shapegroup_shapes(mi, scene):
+    """``{shapegroup id: [its shapes]}`` from Mitsuba's parameter tree, whose ``hierarchy`` maps each node to its
+    parent (a shape whose parent is a shape is a member of a shapegroup)."""
+    members = {}
+    for node, (parent, _) in mi.traverse(scene).hierarchy.items():
+        if isinstance(node, mi.Shape) and isinstance(parent, mi.Shape):
+            members.setdefault(parent.id(), []).append(node)
+    return members
+
+
+def scene_surfaces(mi, scene):
+    """Every shape a ray can hit, as ``(name, shape, instance)``: each plain shape of ``scene`` (``instance`` None)
+    and, for each instance, each shape of its shapegroup."""
+    shapes = scene.shapes()
+    instanced = any(shape.class_name() == "Instance" for shape in shapes)
+    members = shapegroup_shapes(mi, scene) if instanced else {}
+    for k, shape in enumerate(shapes):
+        name = _shape_name(shape, k)
+        if shape.class_name() != "Instance":
+            yield name, shape, None
+            continue
+        group = shapegroup_id(shape)
+        if group not in members:
+            raise ConvsssError(f"instance {name!r} draws shapegroup {group!r}, whose shapes are not in the scene's "
+                               "parameters")
+        for j, member in enumerate(members[group]):
+            yield f"{name}/{_shape_name(member, j)}", member, shape
+
+
+def instance_to_world(mi, instance):
+    """The (4, 4) transform of ``instance`` (scene units); the identity for a plain shape (``instance`` None)."""
+    if instance is None:
+        return np.identity(4)
+    return np.array(mi.traverse(instance)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+
+
+def world_bbox(shape, to_world):
+    """(2, 3) world bounding box of ``shape`` placed by ``to_world``: the box around its bbox's 8 mapped corners."""
+    box = shape.bbox()
+    low, high = np.array(list(box.min), dtype=np.float64), np.array(list(box.max), dtype=np.float64)
+    corners = np.array([[x, y, z, 1.0] for x in (low[0], high[0]) for y in (low[1], high[1])
+                        for z in (low[2], high[2])])
+    mapped = corners @ to_world.T
+    return np.array([mapped[:, :3].min(axis=0), mapped[:, :3].max(axis=0)])
+
+
+def world_area(shape, to_world):
+    """World area of ``shape`` placed by ``to_world``: ``sum_i A_i`` over :data:`AREA_SAMPLES` samples of
+    :func:`~convsss.scene.irradiance.sample_surface` (exact, up to rounding, for the identity)."""
+    _, _, area = sample_surface(shape, AREA_SAMPLES, seed=0, to_world=to_world)
+    return float(np.sum(area.numpy(), dtype=np.float64))
+
+
 def find_translucent_objects(mi, scene, unit_mm=1.0, profile_csv=""):
     """Every translucent shape of ``scene`` as a :class:`TranslucentObject`; a one-line error when there is none.
 
+    Each instance of a shapegroup that holds a translucent shape gives an object of its own.
     Raises :class:`~convsss.errors.ConvsssError` for a shape whose interior medium is not homogeneous or has varying
     coefficients, a translucent shape with another BSDF, and a boundary with ``eta < 1``.
     """
     user_profile = TabulatedProfile.from_csv(profile_csv) if profile_csv else None
     objects = []
-    for k, shape in enumerate(scene.shapes()):
+    orientations = {}  # per shape: its instances share its mesh, checked once
+    for name, shape, instance in scene_surfaces(mi, scene):
         medium = shape.interior_medium()
         if medium is None:
             continue
-        name = _shape_name(shape, k)
         if medium.class_name() != "HomogeneousMedium":
             raise ConvsssError(f"shape {name!r} has a {medium.class_name()!r} interior medium: only 'homogeneous' "
                                "media are supported")
         boundary, eta = boundary_eta(mi, shape.bsdf(), name)
         mat = medium_material(mi, medium, eta, unit_mm, name)
-        box = shape.bbox()
-        area_mm2 = float(np.asarray(shape.surface_area()).reshape(-1)[0]) * unit_mm**2
-        bbox = np.array([list(box.min), list(box.max)], dtype=np.float64) * unit_mm
+        index = shape_index(mi, shape)
+        if index not in orientations:
+            orientations[index] = _orientation(mi, shape, name)
+        to_world = instance_to_world(mi, instance)
         obj = TranslucentObject(shape=shape, name=name, material=mat, boundary=boundary,
                                 profile=user_profile if user_profile is not None else mat.profile(),
-                                shape_index=shape_index(mi, shape), orientation=_orientation(mi, shape, name),
-                                bbox_mm=bbox, area_mm2=area_mm2)
+                                shape_index=index, instance_index=0 if instance is None else shape_index(mi, instance),
+                                to_world=to_world, orientation=orientations[index],
+                                bbox_mm=world_bbox(shape, to_world) * unit_mm,
+                                area_mm2=world_area(shape, to_world) * unit_mm**2)
         _check_span(obj)
         objects.append(obj)
     if not objects:

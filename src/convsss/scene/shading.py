@@ -66,7 +66,6 @@ class Shader:
     def __init__(self, scene, objects, transports, params, stop=None):
         self.scene, self.objects, self.transports, self.params = scene, objects, transports, params
         self.stop = stop
-        self.shape_object = {obj.shape_index: k for k, obj in enumerate(objects)}
         self.ctx = mi.BSDFContext()
         self.ctx_reflect = mi.BSDFContext()
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
@@ -76,15 +75,20 @@ class Shader:
 
     # --- per-bounce pieces ----------------------------------------------------------------------------------------
     def _classify(self, si):
-        """Per lane: index of the translucent object hit (-1: none) and its eta, as numpy arrays."""
-        ids = dr.reinterpret_array(mi.UInt32, si.shape).numpy()
+        """Per lane: index of the translucent object hit (-1: none) and its eta, as numpy arrays.
+
+        An object is the pair (instance, shape): an instanced shape is shared by every instance of its shapegroup,
+        and ``si.instance`` is null (index 0) on a plain shape.
+        """
+        shapes = dr.reinterpret_array(mi.UInt32, si.shape).numpy()
+        instances = dr.reinterpret_array(mi.UInt32, si.instance).numpy()
         valid = si.is_valid().numpy()
-        which = np.full(len(ids), -1, dtype=np.int64)
-        for index, k in self.shape_object.items():
-            which[valid & (ids == index)] = k
-        eta = np.ones(len(ids), dtype=np.float32)
+        which = np.full(len(shapes), -1, dtype=np.int64)
+        eta = np.ones(len(shapes), dtype=np.float32)
         for k, obj in enumerate(self.objects):
-            eta[which == k] = obj.eta
+            on_object = valid & (shapes == obj.shape_index) & (instances == obj.instance_index)
+            which[on_object] = k
+            eta[on_object] = obj.eta
         return which, eta
 
     def _subsurface(self, si, which, throughput):
