@@ -1,5 +1,10 @@
 """Loading scenes for rendering: an XML file or a dictionary, with the ``convsss`` integrator registered first and the
-film optionally resized (the camera keeps its field of view; the crop window becomes the whole film)."""
+film optionally resized (the camera keeps its field of view; the crop window becomes the whole film).
+
+Scenes load without Mitsuba's optimizations (``optimize=False``): by default Mitsuba merges meshes that share a BSDF
+and a medium into one shape, which would make two separate translucent objects of one material a single object,
+with light diffusing across the air between them.
+"""
 
 from pathlib import Path
 
@@ -21,7 +26,7 @@ def load_scene(source, width=None, height=None):
     register()
     if isinstance(source, dict):
         try:
-            scene = mi.load_dict(source)
+            scene = mi.load_dict(source, optimize=False)
         except Exception as error:
             raise ConvsssError(f"cannot build the scene: {_one_line(error)}") from None
     else:
@@ -29,7 +34,7 @@ def load_scene(source, width=None, height=None):
         if not path.is_file():
             raise ConvsssError(f"scene file {str(path)!r} does not exist")
         try:
-            scene = mi.load_file(str(path))
+            scene = mi.load_file(str(path), optimize=False)
         except Exception as error:
             raise ConvsssError(f"cannot load scene {str(path)!r}: {_one_line(error)}") from None
     if not scene.sensors():
