@@ -234,3 +234,10 @@ def test_instanced_spheres_render_like_plain_ones(mi, sphere_scene, object_mask,
         assert np.all(mean > 0)
         np.testing.assert_allclose(mean, plain[:, side][on_sphere].mean(axis=0), rtol=1e-3)
     assert len(scene.integrator().stats["objects"]) == 2
+
+
+def test_absurdly_long_irradiance_is_refused_before_it_starts(mi, sphere_scene):
+    scene = mi.load_dict(sphere_scene(integrator={"irradiance_samples": 10_000_000},
+                                      emitters={"env": {"type": "constant"}}))
+    with pytest.raises(convsss.ConvsssError, match=r"irradiance of 'object' needs .* rays .* lower irradiance_samples"):
+        scene.integrator().render(scene, scene.sensors()[0])

@@ -40,8 +40,12 @@ class VisibilityWarning(UserWarning):
 
 #: Bytes per path of one wavefront (ray, interaction, BSDF sample, throughput, lanes): measured order of magnitude.
 BYTES_PER_PATH = 600
-#: Bytes per surface sample while its irradiance is computed and the transport is built.
+#: Bytes per surface sample held while the transport is built (about 325 measured; irradiance runs in chunks).
 BYTES_PER_SAMPLE = 400
+#: Irradiance rays traced per second on the project's 2-core machine (bunny under a constant environment).
+RAYS_PER_SECOND = 5e6
+#: A render whose irradiance alone would take longer than this is refused before it starts.
+MAX_IRRADIANCE_SECONDS = 600.0
 
 
 def _seed(seed):
@@ -105,9 +109,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             cell_full = pixel_footprint(sensor, frame, depth, p.unit_mm)
             cell = cell_full / p.downsample
             count = max(64, math.ceil(p.sample_density * obj.area_mm2 / cell**2))
-            self._check_memory(count * BYTES_PER_SAMPLE * max(1, min(p.irradiance_samples, 64) // 4),
-                               f"{count} surface samples of {obj.name!r}",
+            self._check_memory(count * BYTES_PER_SAMPLE, f"{count} surface samples of {obj.name!r}",
                                "lower sample_density, or use downsample 0.5 or 0.25")
+            self._check_irradiance_time(scene, count, obj.name)
             self._stage("samples")
             with timer("samples"):
                 position, normal, area = sample_surface(obj.shape, count, _seed(seed), obj.orientation, stream=k,
@@ -141,6 +145,17 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                       "threshold": p.threshold, "splat": p.splat, "correction": p.correction}
         accepted = inspect.signature(TRANSPORTS[p.transport]).parameters
         return {k: v for k, v in candidates.items() if k in accepted}
+
+    def _check_irradiance_time(self, scene, count, name):
+        """Refuse irradiance longer than ``MAX_IRRADIANCE_SECONDS``: ``count`` points x ``irradiance_samples`` directions x (one ray
+        per area or environment emitter + one cosine-sampled ray)."""
+        sampled = sum(not mi.has_flag(e.flags(), mi.EmitterFlags.Delta) for e in scene.emitters())
+        rays = count * self.params.irradiance_samples * (sampled + 1) if sampled else 0
+        if rays / RAYS_PER_SECOND > MAX_IRRADIANCE_SECONDS:
+            raise ConvsssError(f"irradiance of {name!r} needs {rays:.3g} rays ({count} points x "
+                               f"{self.params.irradiance_samples} directions x {sampled + 1}), about "
+                               f"{rays / RAYS_PER_SECOND / 60:.0f} min at {RAYS_PER_SECOND:.0e} rays/s: lower "
+                               "irradiance_samples (16-64 is plenty) or sample_density")
 
     @staticmethod
     def _check_memory(needed, what, advice):
