@@ -12,8 +12,8 @@
 5. **Threshold** (Eq. 8, per channel): the pair (i, l) is skipped when ``R_d(|i-l| dz) < t R_d(0)``.
 6. **Lookup** (Eq. 7): bilinear in x, y inside the two layers that bracket the point, linear in depth.
 7. **Plane correction** (beyond the paper, ``correction="plane"``, needs the query normals): adds what the depth
-   discretization misses for a locally uniform irradiance, exact for any uniformly lit plane
-   (:mod:`.correction`).
+   discretization misses for a locally uniform irradiance, or removes its excess share of what the layers deposited;
+   exact for any uniformly lit plane; it never turns a non-negative exitance negative (:mod:`.correction`).
 
 Cells are ``cell_size / downsample`` mm wide (``downsample`` 1, 1/2, 1/4: the paper's lower-resolution layers).
 """
@@ -319,7 +319,7 @@ class ConvolutionTransport(Transport):
         return out
 
     def _correct(self, points, normals, exitance):
-        """The plane correction (:mod:`.correction`): ``M += R_total (1 - C(cos_theta, w)) E_q``."""
+        """The plane correction (:mod:`.correction`, Eq. P1 and P2) of the layers' exitance, in place."""
         if self.correction != "plane" or self.n_layers == 1:
             return
         with self.timings("correction"):

@@ -16,12 +16,20 @@ deeper and ``sqrt((u cos_theta)^2 + v^2)`` away in the image plane, so
     d_ab(u) = sqrt((u cos_theta)^2 + (|a - b| dz)^2),
 
 with ``alpha`` and ``beta`` the depth weights of source and receiver and ``Lambda(d) = ∫ R_d(sqrt(d^2 + v^2)) dv``
-the profile integrated along a line at distance ``d``. The corrected exitance adds what the layers miss for a
-locally uniform irradiance ``E_q`` around the receiver:
+the profile integrated along a line at distance ``d``. With ``E_q`` the area-weighted irradiance of the samples around
+the receiver on its side of the surface, a uniformly lit tangent plane would deposit ``P = C R_total E_q`` through the
+layers where the exact transport deposits ``R_total E_q``. The corrected exitance is
 
-    M = M_layers + R_total (1 - C(cos_theta, w)) E_q,
+    M = M_layers + R_total (1 - C) E_q                              where C <= 1,   (plane correction, Eq. P1)
+    M = M_layers - min((1 - 1/C) M_layers, R_total (C - 1) E_q)     where C > 1.    (plane correction, Eq. P2)
 
-``E_q`` being the area-weighted irradiance of the samples around the receiver on its side of the surface.
+Where the layers under-estimate (``C <= 1``: a face-on receiver between two layers) the correction adds what they miss
+for the plane. Where they over-estimate (``C > 1``: a receiver seen edge-on) it removes the plane's excess, but never
+more than the excess share ``1 - 1/C`` of what the layers actually deposited: a receiver whose neighbourhood is less
+than the lit plane the table assumes (an object smaller than the profile's reach, a silhouette curving away, a shadow
+edge) received less than ``P`` from the layers, and subtracting a plane's worth from it would leave a negative
+exitance. So ``M >= M_layers / C >= 0`` wherever ``M_layers >= 0`` (Eq. P2), ``M >= M_layers`` where ``C <= 1``
+(Eq. P1), and for the lit plane itself ``M_layers = P``: both give ``M = R_total E_q``.
 
 It is exact for a uniformly lit plane of any orientation at any depth, leaves far-field light (e.g. light through a
 thin back-lit part, where ``E_q`` is small) as the layers compute it, and is an approximation where the irradiance
@@ -122,7 +130,8 @@ def cached_plane_response(profile, key, dz, splat):
 
 @numba.njit(parallel=True, cache=True)
 def apply_correction(exitance, cos_theta, w, irradiance, response, total):
-    """``M += R_total (1 - C(cos_theta, w)) E_q`` in place, ``C`` bilinear on its (cos, w) grid."""
+    """The plane correction (Eq. P1, P2 of the module docstring) of ``exitance`` in place, ``C`` bilinear on its
+    (cos, w) grid."""
     n_cos, n_w = response.shape[0], response.shape[1]
     for k in numba.prange(exitance.shape[0]):
         x = min(max(cos_theta[k], 0.0), 1.0) * (n_cos - 1)
@@ -132,6 +141,11 @@ def apply_correction(exitance, cos_theta, w, irradiance, response, total):
         fx = x - i
         fy = y - j
         for c in range(3):
-            value = ((1 - fx) * ((1 - fy) * response[i, j, c] + fy * response[i, j + 1, c])
-                     + fx * ((1 - fy) * response[i + 1, j, c] + fy * response[i + 1, j + 1, c]))
-            exitance[k, c] += total[c] * (1.0 - value) * irradiance[k, c]
+            layers_over_exact = ((1 - fx) * ((1 - fy) * response[i, j, c] + fy * response[i, j + 1, c])
+                                 + fx * ((1 - fy) * response[i + 1, j, c] + fy * response[i + 1, j + 1, c]))
+            lit_plane = total[c] * irradiance[k, c]  # R_total E_q: the exact exitance of the lit tangent plane
+            if layers_over_exact <= 1.0:
+                exitance[k, c] += (1.0 - layers_over_exact) * lit_plane  # Eq. P1
+            else:  # Eq. P2
+                exitance[k, c] -= min((1.0 - 1.0 / layers_over_exact) * exitance[k, c],
+                                      (layers_over_exact - 1.0) * lit_plane)
