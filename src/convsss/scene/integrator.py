@@ -147,8 +147,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         return {k: v for k, v in candidates.items() if k in accepted}
 
     def _check_irradiance_time(self, scene, count, name):
-        """Refuse irradiance longer than ``MAX_IRRADIANCE_SECONDS``: ``count`` points x ``irradiance_samples`` directions x (one ray
-        per area or environment emitter + one cosine-sampled ray)."""
+        """Refuse irradiance longer than ``MAX_IRRADIANCE_SECONDS``: ``count`` points x ``irradiance_samples``
+        directions x (one ray per area or environment emitter + one cosine-sampled ray)."""
         sampled = sum(not mi.has_flag(e.flags(), mi.EmitterFlags.Delta) for e in scene.emitters())
         rays = count * self.params.irradiance_samples * (sampled + 1) if sampled else 0
         if rays / RAYS_PER_SECOND > MAX_IRRADIANCE_SECONDS:

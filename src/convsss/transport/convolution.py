@@ -304,7 +304,9 @@ class ConvolutionTransport(Transport):
         with self.timings("inverse_fft"):
             spatial = scipy.fft.irfft2(out, s=self.padded_shape, workers=self.workers)
             height, width = self.grid_shape
-            self._exitance_layers[todo] = spatial[:, :, :height, :width]
+            # Non-negative flux convolved with a non-negative kernel is non-negative; the FFT's float32 round-off
+            # (about 1e-7 of the peak) is not, so values below zero are round-off and their true value is ~0.
+            self._exitance_layers[todo] = np.maximum(spatial[:, :, :height, :width], 0.0)
         self.computed[todo] = True
 
     def _prepare(self, points):
