@@ -1,3 +1,5 @@
+import warnings
+
 import numpy as np
 import pytest
 
@@ -241,3 +243,23 @@ def test_absurdly_long_irradiance_is_refused_before_it_starts(mi, sphere_scene):
                                       emitters={"env": {"type": "constant"}}))
     with pytest.raises(convsss.ConvsssError, match=r"irradiance of 'object' needs .* rays .* lower irradiance_samples"):
         scene.integrator().render(scene, scene.sensors()[0])
+
+
+def test_open_disk_and_non_reflecting_channel_render_without_stray_warnings(mi, sphere_scene):
+    """A translucent disk renders (one warning: not closed); coke (reduced albedo 0 in blue, R_total = 0) renders
+    with one warning (optically thin) and no numpy division warnings."""
+    from convsss.materials import OpticallyThinWarning
+    from convsss.scene.materials import translucent
+    from convsss.scene.objects import MeshWarning
+
+    disk = sphere_scene()
+    disk["object"] = translucent({"type": "disk", "to_world": mi.ScalarTransform4f().scale(2.0)},
+                                 convsss.material("skin1"), boundary="null")
+    coke = sphere_scene(material="coke")
+    for scene_dict, expected in ((disk, MeshWarning), (coke, OpticallyThinWarning)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            scene = mi.load_dict(scene_dict)
+            image = np.array(scene.integrator().render(scene, scene.sensors()[0]))
+        assert [w.category for w in caught] == [expected], [str(w.message) for w in caught]
+        assert np.all(np.isfinite(image)) and image.min() >= 0

@@ -150,3 +150,20 @@ def test_stretched_mirrored_mesh_instance(mi, tmp_path, inverted):
     position, normal, _ = sample_surface(obj.shape, 1024, seed=1, orientation=obj.orientation, to_world=obj.to_world)
     outward = np.asarray(position.numpy(), dtype=np.float64).T - [-1, 0.5, 0.5]
     assert np.all(np.einsum("ij,ij->i", np.asarray(normal.numpy()).T, outward) > 0)
+
+
+def test_open_analytic_shapes_warn_and_degenerate_meshes_are_refused(mi, tmp_path):
+    skin = convsss.material("skin1")
+    for kind in ("disk", "cylinder", "rectangle"):
+        with pytest.warns(MeshWarning, match="not known to be a closed surface"):
+            (obj,) = _objects(mi, {"s": translucent({"type": kind}, skin)})
+        assert not obj.closed
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        (obj,) = _objects(mi, {"s": translucent({"type": "sphere"}, skin)})
+    assert obj.closed
+    flat = tmp_path / "flat.obj"
+    flat.write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
+    with pytest.raises(ConvsssError, match="'s' has no surface area"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", MeshWarning)
+        _objects(mi, {"s": translucent({"type": "obj", "filename": str(flat)}, skin)})

@@ -6,6 +6,7 @@ seconds, grid/FFT shapes and the object's size in mean free paths. Files are wri
 
 import json
 import time
+import warnings
 from pathlib import Path
 
 import click
@@ -52,6 +53,7 @@ def scene_source_options(func):
 
 def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height):
     """The loaded scene for the scene-source options; one-line errors for bad combinations."""
+    from ..materials import OpticallyThinWarning
     from ..materials import material as lookup_material
     from ..scene.loading import load_scene
 
@@ -64,7 +66,10 @@ def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, hei
     from ..scene.quick import demo_mesh, quick_scene
 
     mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)
-    scene = quick_scene(mesh_path, lookup_material(material), size_mm, width or 800, height or 800, floor=floor,
+    with warnings.catch_warnings():  # the scene's object says it once, by its own name
+        warnings.simplefilter("ignore", OpticallyThinWarning)
+        preset = lookup_material(material)
+    scene = quick_scene(mesh_path, preset, size_mm, width or 800, height or 800, floor=floor,
                         boundary=boundary)
     return load_scene(scene)
 

@@ -93,7 +93,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         transports, per_object, shown, hidden = [], [], [], []
         for k, (obj, (depths, from_behind)) in enumerate(zip(objects, seen)):
             seen_from_inside = from_behind == (obj.orientation > 0)  # against the outward normal
-            if len(depths) and seen_from_inside.mean() > 0.5:
+            if obj.closed and len(depths) and seen_from_inside.mean() > 0.5:
                 raise ConvsssError(f"the camera is inside translucent shape {obj.name!r}: the diffusion model renders "
                                    "objects seen from outside; move the camera out of it")
             if len(depths) == 0:

@@ -69,6 +69,9 @@ def sample_surface(shape, count, seed, orientation=1.0, stream=0, to_world=None)
     local_area = float(np.asarray(shape.surface_area()).reshape(-1)[0]) / dr.width(u)
     stretch = dr.norm(transform @ mi.Normal3f(_geometric_normal(shape, u, ps.n, matrix[:3, :3])))
     area = local_area * abs(float(np.linalg.det(matrix[:3, :3]))) * stretch
+    # A flat shape (disk, rectangle) has one normal for all its points: give every sample its own entry.
+    n = dr.width(u)
+    normal, area = normal + dr.zeros(mi.Vector3f, n), area + dr.zeros(mi.Float, n)
     dr.eval(position, normal, area)
     return position, normal, area
 

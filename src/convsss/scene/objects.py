@@ -31,6 +31,8 @@ from .irradiance import sample_surface
 BOUNDARY_CLASSES = {"Null": "null", "SmoothDielectric": "dielectric", "RoughDielectric": "roughdielectric"}
 #: The object may span at most / at least this many mean free paths before the units look wrong.
 SPAN_LIMITS = (1e-3, 1e6)
+#: Analytic shapes (Mitsuba class names) that bound a volume; disks, rectangles and cylinders are open.
+CLOSED_ANALYTIC = ("Sphere",)
 #: Stratified samples that estimate the world area of an instanced shape (exact for a plain one).
 AREA_SAMPLES = 128 * 128
 
@@ -58,6 +60,7 @@ class TranslucentObject:
     instance_index : int         the instance's index in that registry (what ``si.instance`` holds), 0 if none
     to_world : (4, 4) array      the instance's transform (scene units), the identity for a plain shape
     orientation : float          +1 if the shape's normals point outwards, -1 if they point inwards
+    closed : bool                the surface is known to bound a volume (a watertight mesh, a sphere)
     bbox_mm : (2, 3) array       world-space bounding box in mm
     area_mm2 : float             world surface area in mm^2
     """
@@ -71,6 +74,7 @@ class TranslucentObject:
     instance_index: int
     to_world: np.ndarray
     orientation: float
+    closed: bool
     bbox_mm: np.ndarray
     area_mm2: float
 
@@ -163,10 +167,16 @@ def mesh_topology(mi, shape):
     return watertight, signed_volume
 
 
-def _orientation(mi, shape, name):
-    """+1 if the outward normal is the shape's normal, -1 if a closed mesh is wound inwards; warns on open meshes."""
-    if not shape.is_mesh():
-        return 1.0
+def _surface(mi, shape, name):
+    """``(orientation, closed)``: +1 if the outward normal is the shape's normal, -1 if a closed mesh is wound
+    inwards; whether the shape is known to bound a volume. Warns on open or unknown surfaces."""
+    if not (shape.is_mesh() and "vertex_positions" in mi.traverse(shape)):  # a rectangle is a mesh without vertices
+        closed = shape.class_name() in CLOSED_ANALYTIC
+        if not closed:
+            warnings.warn(f"translucent shape {name!r} is a {shape.class_name()!r}, not known to be a closed "
+                          "surface: the diffusion model needs an object that bounds a volume", MeshWarning,
+                          stacklevel=4)
+        return 1.0, closed
     watertight, volume = mesh_topology(mi, shape)
     if not watertight:
         warnings.warn(f"translucent mesh {name!r} is not watertight (some edges do not join exactly two faces): "
@@ -174,8 +184,8 @@ def _orientation(mi, shape, name):
     if volume < 0:
         warnings.warn(f"translucent mesh {name!r} has inward-facing normals; they are flipped for shading",
                       MeshWarning, stacklevel=4)
-        return -1.0
-    return 1.0
+        return -1.0, watertight
+    return 1.0, watertight
 
 
 def _check_span(obj):
@@ -270,7 +280,7 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile_csv=""):
     """
     user_profile = TabulatedProfile.from_csv(profile_csv) if profile_csv else None
     objects = []
-    orientations = {}  # per shape: its instances share its mesh, checked once
+    surfaces = {}  # per shape: its instances share its mesh, checked once
     for name, shape, instance in scene_surfaces(mi, scene):
         medium = shape.interior_medium()
         if medium is None:
@@ -281,15 +291,17 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile_csv=""):
         boundary, eta = boundary_eta(mi, shape.bsdf(), name)
         mat = medium_material(mi, medium, eta, unit_mm, name)
         index = shape_index(mi, shape)
-        if index not in orientations:
-            orientations[index] = _orientation(mi, shape, name)
+        if index not in surfaces:
+            surfaces[index] = _surface(mi, shape, name)
         to_world = instance_to_world(mi, instance)
         obj = TranslucentObject(shape=shape, name=name, material=mat, boundary=boundary,
                                 profile=user_profile if user_profile is not None else mat.profile(),
                                 shape_index=index, instance_index=0 if instance is None else shape_index(mi, instance),
-                                to_world=to_world, orientation=orientations[index],
+                                to_world=to_world, orientation=surfaces[index][0], closed=surfaces[index][1],
                                 bbox_mm=world_bbox(shape, to_world) * unit_mm,
                                 area_mm2=world_area(shape, to_world) * unit_mm**2)
+        if not obj.area_mm2 > 0:
+            raise ConvsssError(f"translucent shape {name!r} has no surface area (all its faces are degenerate)")
         _check_span(obj)
         objects.append(obj)
     if not objects:

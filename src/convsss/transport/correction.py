@@ -112,7 +112,9 @@ def plane_response(profile, dz, splat="linear", reach=None):
     w_grid = np.linspace(0.0, 1.0, N_W)
     out = np.empty((N_COS, N_W, 3))
     _plane_response(cos_grid, w_grid, max(dz, 1e-12), splat == "half", u, du, d_grid, lam, out)
-    return cos_grid, w_grid, out / profile.total_reflectance
+    total = np.broadcast_to(profile.total_reflectance, (3,))
+    # A channel that reflects nothing (reduced albedo 0) has nothing to correct: C = 1.
+    return cos_grid, w_grid, np.divide(out, total, out=np.ones_like(out), where=total > 0)
 
 
 RESPONSES = KernelCache(size=8)
