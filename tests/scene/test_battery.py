@@ -8,7 +8,8 @@ from hypothesis import strategies as st
 
 import convsss
 from convsss.scene.materials import BOUNDARIES, translucent
-from convsss.scene.params import DOWNSAMPLES, SPECULARS, SPLATS, RenderParams, available_transports
+from convsss.scene.params import SPECULARS, RenderParams, available_transports
+from convsss.transport.convolution import DOWNSAMPLES, SPLATS
 
 
 def _emitters(mi, tmp_path_factory):

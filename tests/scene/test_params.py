@@ -18,7 +18,7 @@ def test_from_mapping_takes_only_known_names():
 @pytest.mark.parametrize("kwargs, message", [
     ({"layers": 1}, "layers=1"),
     ({"layers": 2.5}, "whole number"),
-    ({"layers": 10000}, "layers=10000 is not allowed: it must be >= 2 and <= 256"),
+    ({"layers": 10000}, "layers=10000 is not allowed: it must be a whole number >= 2 and <= 256"),
     ({"threshold": -0.1}, "threshold=-0.1"),
     ({"downsample": 0.3}, "downsample=0.3"),
     ({"transport": "fft"}, "transport='fft'"),

@@ -339,8 +339,12 @@ def test_plane_correction_at_silhouettes_is_not_negative():
 
 
 def test_plane_correction_needs_normals_and_a_known_mode():
-    flat = plane(3.0, 0.2)
+    """The correction needs the samples' normals where it applies (more than one layer); a flat set has one layer."""
+    ball = sphere(500, 3.0)
+    no_normals = IrradianceSamples(ball.position, ball.area, ball.irradiance)
     with pytest.raises(ConvsssError, match="normals"):
-        ConvolutionTransport(flat, material("skin1").profile(), FRAME, correction="plane")
+        ConvolutionTransport(no_normals, material("skin1").profile(), FRAME, correction="plane")
+    ConvolutionTransport(no_normals, material("skin1").profile(), FRAME, correction="none")
+    ConvolutionTransport(plane(3.0, 0.2), material("skin1").profile(), FRAME, correction="plane")
     with pytest.raises(ConvsssError, match="correction"):
         ConvolutionTransport(sphere(500, 3.0), material("skin1").profile(), FRAME, correction="cubic")

@@ -45,17 +45,16 @@ import numpy as np
 from tqdm import tqdm
 
 from ..compare import FLOOR
-from ..transport import ConvolutionTransport, ExactTransport, HierarchicalTransport
+from ..transport import TRANSPORTS, make_transport
+from ..transport.convolution import CORRECTIONS, DOWNSAMPLES
 from ..transport.correction import RESPONSES
 from ..transport.kernels import CACHE
 
 LAYERS = (2, 4, 8, 16)
-DOWNSAMPLES = (1.0, 0.5, 0.25)
 THRESHOLDS = (0.0, 0.001, 0.05)
 #: The sweep asked for (0.01–1), plus 2 and 5: coarse enough to reach the convolution transport's errors.
 EPSILONS = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
 SCENES = ("null", "dielectric")
-CORRECTIONS = ("none", "plane")
 #: Methods compared: the paper's layers, the layers with the plane correction (beyond the paper), Jensen–Buhler.
 METHOD_COLORS = {"convolution": "tab:blue", "convolution+plane": "tab:green", "hierarchical": "tab:orange"}
 
@@ -167,14 +166,13 @@ def label(config):
 
 
 def build_transport(config, samples, profile, frame, cell_size):
-    """The transport of ``config`` on ``samples`` (constructed, not yet queried)."""
-    if config["transport"] == "convolution":
-        return ConvolutionTransport(samples, profile, frame, layers=config["layers"], cell_size=cell_size,
-                                    downsample=config["downsample"], threshold=config["threshold"],
-                                    correction=config.get("correction", "none"))
-    if config["transport"] == "hierarchical":
-        return HierarchicalTransport(samples, profile, epsilon=config["epsilon"])
-    return ExactTransport(samples, profile)
+    """The transport of ``config`` (its name under ``transport``, then its parameters) on ``samples``, given the
+    pixel footprint ``cell_size`` if it takes one (constructed, not yet queried)."""
+    kind = config["transport"]
+    params = {k: v for k, v in config.items() if k != "transport"}
+    if TRANSPORTS[kind].accepts("cell_size"):
+        params["cell_size"] = cell_size
+    return make_transport(kind, samples, profile, frame, **params)
 
 
 def timed_run(config, samples, points, profile, frame, cell_size, normals=None):

@@ -76,7 +76,8 @@ def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, hei
 
 def integrator_options(func):
     """Options mirroring the integrator's parameters; unset ones keep the scene's (or the defaults)."""
-    from ..scene.params import CORRECTIONS, DOWNSAMPLES, SPECULARS, SPLATS
+    from ..scene.params import SPECULARS
+    from ..transport.convolution import CORRECTIONS, DOWNSAMPLES, SPLATS
 
     options = [
         click.option("--layers", type=int, help="Layers parallel to the image plane (paper §4). [default: 8]"),

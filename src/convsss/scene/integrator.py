@@ -13,7 +13,6 @@
 Per-stage seconds and everything a user needs to judge the run are in :attr:`ConvsssIntegrator.stats`.
 """
 
-import inspect
 import math
 import warnings
 
@@ -24,7 +23,7 @@ from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..samples import IrradianceSamples
 from ..timing import StageTimer
-from ..transport import TRANSPORTS, make_transport
+from ..transport import make_transport
 from ..transport.convolution import available_memory
 from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
 from .irradiance import sample_surface, surface_irradiance
@@ -107,7 +106,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
             depth = depth if depth > 0 else float(np.median(depths))
             cell_full = pixel_footprint(sensor, frame, depth, p.unit_mm)
-            cell = cell_full / p.downsample
+            cell = cell_full / p.transport_params().get("downsample", 1.0)
             count = max(64, math.ceil(p.sample_density * obj.area_mm2 / cell**2))
             self._check_memory(count * BYTES_PER_SAMPLE, f"{count} surface samples of {obj.name!r}",
                                "lower sample_density, or use downsample 0.5 or 0.25")
@@ -140,11 +139,11 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         return self._shader
 
     def _transport_params(self, cell_full):
-        p = self.params
-        candidates = {"layers": p.layers, "cell_size": cell_full, "downsample": p.downsample,
-                      "threshold": p.threshold, "splat": p.splat, "correction": p.correction}
-        accepted = inspect.signature(TRANSPORTS[p.transport]).parameters
-        return {k: v for k, v in candidates.items() if k in accepted}
+        """The chosen transport's parameters, and the pixel footprint as its ``cell_size`` if it declares one."""
+        params = self.params.transport_params()
+        if self.params.transport_class().accepts("cell_size"):
+            params["cell_size"] = cell_full
+        return params
 
     def _check_irradiance_time(self, scene, count, name):
         """Refuse irradiance longer than ``MAX_IRRADIANCE_SECONDS``: ``count`` points x ``irradiance_samples``

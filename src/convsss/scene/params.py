@@ -1,23 +1,17 @@
 """The parameters of the ``convsss`` integrator, checked in one place (no Mitsuba needed).
 
 The same :class:`RenderParams` backs ``<integrator type="convsss">``, :func:`mitsuba.render` and the command line, so
-a bad value gets the same one-line :class:`~convsss.errors.ConvsssError` everywhere. Defaults are the paper's
-(§5: 8 layers, threshold ``t = 0.1 %``, full-resolution layers).
+a bad value gets the same one-line :class:`~convsss.errors.ConvsssError` everywhere. They are the renderer's own
+(:func:`render_parameters`) and the transports' (each transport's declared ``parameters``, e.g. ``layers`` of the
+convolution, ``epsilon`` of the hierarchical method): every declaration has one default, stated once.
 """
 
-from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import ConvsssError
+from ..parameters import Parameter, check_parameters
 
-SPLATS = ("linear", "half")
-CORRECTIONS = ("plane", "none")
 SPECULARS = ("bsdf", "phong", "none")
-DOWNSAMPLES = (1.0, 0.5, 0.25)
-#: Mixing costs layers^2 per frequency; the paper uses 2-16 layers, and 256 is already far past any gain.
-MAX_LAYERS = 256
 
 
 def available_transports():
@@ -27,103 +21,96 @@ def available_transports():
     return tuple(sorted(TRANSPORTS))
 
 
-@dataclass(frozen=True)
-class RenderParams:
-    """Every ``convsss`` integrator parameter with its default.
+def render_parameters():
+    """The renderer's own parameters (the transports declare theirs)."""
+    return (
+        Parameter("transport", str, "convolution", "convolution: the paper's layered FFTs; exact: the direct sum "
+                  "(slow, a reference); hierarchical: Jensen & Buhler 2002.", choices=available_transports()),
+        Parameter("irradiance_samples", int, 16, "Direction samples per surface point for area and environment "
+                  "emitters (point, spot and directional lights are evaluated exactly).", low=1),
+        Parameter("sample_density", float, 4.0, "Surface samples per layer cell: N = sample_density * area / cell^2 "
+                  "over the whole surface.", low=0.0, low_open=True),
+        Parameter("specular", str, "bsdf", "Boundary reflection on translucent objects: the scene's BSDF, the paper's "
+                  "Phong lobe weighted by the Fresnel reflectance, or none.", choices=SPECULARS),
+        Parameter("phong_exponent", float, 64.0, "Exponent of the Phong lobe with specular = phong.", low=0.0,
+                  low_open=True),
+        Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
+                  "light; -1 is unbounded with Russian roulette; 0 is not allowed).", low=-1),
+        Parameter("rr_depth", int, 5, "Depth from which Russian roulette may end paths.", low=1),
+        Parameter("unit_mm", float, 1.0, "How many mm one scene unit is (scene coefficients are per scene unit).",
+                  low=0.0, low_open=True),
+        Parameter("profile", str, "", "CSV file r_mm, R, G, B of a user-defined radial profile that replaces the "
+                  "dipole (empty: the dipole)."),
+    )
 
-    Attributes
-    ----------
-    layers : int
-        Number of layers ``n_l`` parallel to the image plane (paper §4; 4–8 is the paper's trade-off).
-    threshold : float
-        Skip layer pairs whose profile falls below ``t R_d(0)`` (paper §5, Eq. 8).
-    downsample : float
-        Layer resolution relative to the image: 1, 0.5 or 0.25 (paper §5, Fig. 3).
-    splat : str
-        How a sample's irradiance goes into the layers: ``linear`` (weights by depth between the two nearest layers)
-        or ``half`` (half and half, as the paper says).
-    correction : str
-        ``plane`` (beyond the paper): correct the convolution's depth discretization with its exact response to the
-        receiver's tangent plane (:mod:`convsss.transport.correction`); ``none``: the paper's method as published.
-    transport : str
-        ``convolution`` (the paper's method), ``hierarchical`` (Jensen & Buhler 2002) or ``exact`` (the direct sum,
-        a reference for small scenes).
-    irradiance_samples : int
-        Direction samples per surface point for area and environment emitters (point, spot and directional lights
-        are evaluated exactly).
-    sample_density : float
-        Surface samples per grid cell: ``N = sample_density * area / cell^2`` over the whole surface.
-    specular : str
-        Boundary reflection on translucent objects: ``bsdf`` (the scene's dielectric), ``phong`` (the paper's Phong
-        lobe weighted by the Fresnel reflectance) or ``none``.
-    phong_exponent : float
-        Exponent of the Phong lobe when ``specular = phong``.
-    max_depth : int
-        Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct light; -1 is unbounded with Russian
-        roulette).
-    rr_depth : int
-        Depth from which Russian roulette may end paths.
-    unit_mm : float
-        How many mm one scene unit is (scene coefficients are per scene unit).
-    profile : str
-        CSV file ``r_mm, R, G, B`` of a user-defined radial profile that replaces the dipole ("" for the dipole).
+
+def transport_parameters():
+    """The exposed (user-settable) parameters of every registered transport, by name.
+
+    A name declared by several transports maps to the first declaration (in name order of the transports).
+    """
+    from ..transport import TRANSPORTS
+
+    out = {}
+    for kind in sorted(TRANSPORTS):
+        for p in TRANSPORTS[kind].parameters:
+            if p.exposed:
+                out.setdefault(p.name, p)
+    return out
+
+
+class RenderParams:
+    """Every ``convsss`` integrator parameter: the renderer's and the transports', each checked, defaults filled in.
+
+    ``RenderParams(transport="hierarchical", epsilon=0.1)``: attributes read the value given or the default
+    (``params.layers``, ``params.epsilon``). A transport's parameter is checked against its own declaration.
     """
 
-    layers: int = 8
-    threshold: float = 0.001
-    downsample: float = 1.0
-    splat: str = "linear"
-    correction: str = "plane"
-    transport: str = "convolution"
-    irradiance_samples: int = 16
-    sample_density: float = 4.0
-    specular: str = "bsdf"
-    phong_exponent: float = 64.0
-    max_depth: int = 6
-    rr_depth: int = 5
-    unit_mm: float = 1.0
-    profile: str = ""
-
-    def __post_init__(self):
-        def number(name, kind, low, low_open=False, high=None):
-            value = getattr(self, name)
-            try:
-                converted = kind(value)
-            except (TypeError, ValueError):
-                raise ConvsssError(f"{name}={value!r} is not allowed: it must be a number") from None
-            if kind is int and converted != value:
-                raise ConvsssError(f"{name}={value!r} is not allowed: it must be a whole number")
-            too_low = converted <= low if low_open else converted < low
-            if not np.isfinite(converted) or too_low or (high is not None and converted > high):
-                bound = f"> {low}" if low_open else f">= {low}"
-                bound += f" and <= {high}" if high is not None else ""
-                raise ConvsssError(f"{name}={value!r} is not allowed: it must be {bound}")
-            object.__setattr__(self, name, converted)
-
-        number("layers", int, 2, high=MAX_LAYERS)
-        number("threshold", float, 0.0, high=0.999)
-        number("irradiance_samples", int, 1)
-        number("sample_density", float, 0.0, low_open=True)
-        number("phong_exponent", float, 0.0, low_open=True)
-        number("rr_depth", int, 1)
-        number("unit_mm", float, 0.0, low_open=True)
-        number("max_depth", int, -1)
-        if self.max_depth == 0:
+    def __init__(self, **values):
+        renderer = {p.name for p in render_parameters()}
+        declared = transport_parameters()
+        unknown = sorted(set(values) - renderer - set(declared))
+        if unknown:
+            raise ConvsssError(f"the convsss integrator has no parameter {unknown[0]!r}")
+        self._renderer = check_parameters(render_parameters(), {k: v for k, v in values.items() if k in renderer},
+                                          "the convsss integrator")
+        if self._renderer["max_depth"] == 0:
             raise ConvsssError("max_depth=0 is not allowed: it must be -1 (unbounded) or >= 1")
-        number("downsample", float, 0.0, low_open=True)
-        if self.downsample not in DOWNSAMPLES:
-            raise ConvsssError(f"downsample={self.downsample!r} is not allowed: choose one of 1, 0.5, 0.25")
-        for name, allowed in (("splat", SPLATS), ("correction", CORRECTIONS), ("specular", SPECULARS),
-                              ("transport", available_transports())):
-            if getattr(self, name) not in allowed:
-                raise ConvsssError(f"{name}={getattr(self, name)!r} is not allowed: choose one of {', '.join(allowed)}")
-        object.__setattr__(self, "profile", str(self.profile or ""))
-        if self.profile and not Path(self.profile).is_file():
-            raise ConvsssError(f"profile file {self.profile!r} does not exist (a CSV with columns r_mm, R, G, B)")
+        profile = self._renderer["profile"]
+        if profile and not Path(profile).is_file():
+            raise ConvsssError(f"profile file {profile!r} does not exist (a CSV with columns r_mm, R, G, B)")
+        own = {p.name: p for p in self.transport_class().parameters if p.exposed}
+        self._options = {k: (own.get(k) or declared[k]).check(v) for k, v in values.items() if k in declared}
+
+    def transport_class(self):
+        from ..transport import TRANSPORTS
+
+        return TRANSPORTS[self._renderer["transport"]]
+
+    def transport_params(self):
+        """The chosen transport's exposed parameters: given values over its defaults."""
+        return {p.name: self._options.get(p.name, p.default) for p in self.transport_class().parameters if p.exposed}
+
+    def __getattr__(self, name):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        if name in self._renderer:
+            return self._renderer[name]
+        if name in self._options:
+            return self._options[name]
+        declared = {p.name: p for p in self.transport_class().parameters if p.exposed}
+        declared = declared if name in declared else transport_parameters()
+        if name in declared:
+            return declared[name].default
+        raise AttributeError(name)
+
+    def __repr__(self):
+        return f"RenderParams({', '.join(f'{k}={v!r}' for k, v in self.to_dict().items())})"
 
     @classmethod
     def names(cls):
-        return [f.name for f in fields(cls)]
+        """Every parameter name: the renderer's and every transport's exposed ones."""
+        return [p.name for p in render_parameters()] + [n for n in transport_parameters() if n != "transport"]
 
     @classmethod
     def from_properties(cls, props):
@@ -131,7 +118,8 @@ class RenderParams:
         return cls(**{name: props[name] for name in cls.names() if name in props})
 
     def to_dict(self):
-        return asdict(self)
+        """The renderer's values, the chosen transport's parameters, and any other transport option given."""
+        return {**self._renderer, **self.transport_params(), **self._options}
 
     def integrator_dict(self):
         """A Mitsuba dictionary ``{"type": "convsss", ...}`` with these parameters."""

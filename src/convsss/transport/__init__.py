@@ -1,30 +1,32 @@
 """Transports: from irradiance samples to radiant exitance ``M`` anywhere (see :mod:`convsss.transport.base`).
 
+Each transport is a plug-in: a :class:`~convsss.transport.base.Transport` subclass in its own module that declares
+its parameters and registers itself (``register_transport`` on the module's last line). Importing this package
+imports them all, so :data:`TRANSPORTS` holds every one:
+
 - ``exact``: the direct sum over all samples (reference, small cases);
 - ``convolution``: the paper's layered FFT convolutions (§4–5);
 - ``hierarchical``: Jensen & Buhler 2002's octree, the paper's comparison method (§6).
 """
 
 from ..errors import ConvsssError
-from .base import Transport, total_flux
+from . import convolution, exact, hierarchical  # noqa: F401  (each registers its transport)
+from .base import TRANSPORTS, Transport, register_transport
 from .convolution import ConvolutionTransport
 from .exact import ExactTransport
 from .hierarchical import HierarchicalTransport
 
-TRANSPORTS = {"convolution": ConvolutionTransport, "exact": ExactTransport, "hierarchical": HierarchicalTransport}
-
 
 def make_transport(kind, samples, profile, frame=None, **params):
-    """Build the transport called ``kind`` from ``samples`` and ``profile`` with its own keyword ``params``.
+    """The transport called ``kind``: ``TRANSPORTS[kind](samples, profile, frame, **params)``.
 
-    ``frame`` (the camera's :class:`~convsss.samples.ViewFrame`) goes to the transports that use one.
+    ``frame`` is the camera's :class:`~convsss.samples.ViewFrame` (the convolution needs it; the others accept
+    ``None``); ``params`` are the transport's declared parameters (``TRANSPORTS[kind].parameters``).
     """
     if kind not in TRANSPORTS:
         raise ConvsssError(f"unknown transport {kind!r}: choose one of {', '.join(sorted(TRANSPORTS))}")
-    if kind == "convolution":
-        params["frame"] = frame
-    return TRANSPORTS[kind](samples, profile, **params)
+    return TRANSPORTS[kind](samples, profile, frame, **params)
 
 
 __all__ = ["ConvolutionTransport", "ExactTransport", "HierarchicalTransport", "TRANSPORTS", "Transport",
-           "make_transport", "total_flux"]
+           "make_transport", "register_transport"]

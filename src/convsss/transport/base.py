@@ -9,28 +9,52 @@ in the units of ``E``. The outgoing radiance is ``L = (1/pi) F_t(eta, w_o) M`` (
 never here. A transport knows nothing of Mitsuba.
 """
 
-import numpy as np
-
-from ..samples import IrradianceSamples, as_points
+from ..parameters import check_parameters
+from ..samples import IrradianceSamples, ViewFrame, as_points
 from ..timing import StageTimer
+
+#: Every transport, by name: each module registers its class on its last line (:func:`register_transport`).
+TRANSPORTS = {}
+
+
+def register_transport(cls):
+    """Make ``cls`` (a :class:`Transport` subclass with a ``name`` and ``parameters``) available by its name."""
+    TRANSPORTS[cls.name] = cls
+    return cls
 
 
 class Transport:
-    """Base class: keeps the samples, the profile, per-stage timings, and answers :meth:`exitance`."""
+    """Base class of every transport: ``Transport(samples, profile, frame, **params)``.
+
+    Keeps the samples, the profile, the camera's :class:`~convsss.samples.ViewFrame` (``None`` where a transport
+    needs none), the parameters checked against the class's declared :attr:`parameters` (defaults filled in) as
+    :attr:`params`, per-stage timings; answers :meth:`exitance`.
+    """
 
     name = "transport"
+    #: The :class:`~convsss.parameters.Parameter` declarations of this transport's keyword parameters.
+    parameters = ()
+
+    def __init__(self, samples, profile, frame=None, **params):
+        if not isinstance(samples, IrradianceSamples):
+            raise TypeError("samples must be an IrradianceSamples")
+        if frame is not None and not isinstance(frame, ViewFrame):
+            raise TypeError("frame must be a ViewFrame or None")
+        self.samples = samples
+        self.profile = profile
+        self.frame = frame
+        self.params = check_parameters(self.parameters, params, f"the {self.name} transport")
+        self.timings = StageTimer()
+
+    @classmethod
+    def accepts(cls, name):
+        """Whether this transport declares a parameter called ``name``."""
+        return any(p.name == name for p in cls.parameters)
 
     @property
     def query_batch(self):
         """Query points per :meth:`exitance` call that keep a call short (a caller checks for Ctrl-C between calls)."""
         return 1 << 16
-
-    def __init__(self, samples, profile):
-        if not isinstance(samples, IrradianceSamples):
-            raise TypeError("samples must be an IrradianceSamples")
-        self.samples = samples
-        self.profile = profile
-        self.timings = StageTimer()
 
     def exitance(self, points, normals=None):
         """Radiant exitance ``M`` at ``points`` (K, 3) in mm; returns (K, 3) float64.
@@ -62,10 +86,6 @@ class Transport:
     @property
     def stats(self):
         """A JSON-ready dict describing the run: transport name, sample count, per-stage seconds."""
-        return {"transport": self.name, "samples": len(self.samples),
+        return {"transport": self.name, "samples": len(self.samples), "parameters": dict(self.params),
                 "seconds": {k: float(v) for k, v in self.timings.items()}}
 
-
-def total_flux(samples):
-    """``sum_i E_i A_i`` per channel: with the profile's total reflectance, the energy check of a transport."""
-    return np.sum(samples.flux, axis=0)

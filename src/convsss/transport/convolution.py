@@ -23,13 +23,17 @@ import numpy as np
 import scipy.fft
 
 from ..errors import ConvsssError
+from ..parameters import Parameter
 from ..samples import ViewFrame
-from .base import Transport
+from .base import Transport, register_transport
 from .correction import apply_correction, cached_plane_response
 from .kernels import kernel_spectra, profile_key
 
 SPLATS = ("linear", "half")
 CORRECTIONS = ("none", "plane")
+DOWNSAMPLES = (1.0, 0.5, 0.25)
+#: Mixing costs layers^2 per frequency; the paper uses 2-16 layers, and 256 is already far past any gain.
+MAX_LAYERS = 256
 DEFAULT_RESOLUTION = 512
 
 
@@ -172,49 +176,56 @@ class ConvolutionTransport(Transport):
     profile : Profile
     frame : ViewFrame
         The camera frame; layers are perpendicular to ``frame.forward``.
-    layers : int
-        Number of layers ``n_l`` (paper: 4–8 is a good trade-off).
-    cell_size : float, optional
-        Grid cell in mm at full resolution (the pixel footprint at the object). Default: the larger extent of the
-        samples in the image plane divided by ``resolution``.
-    resolution : int, optional
-        Cells across the larger image-plane extent when ``cell_size`` is not given (default 512).
-    downsample : float
-        Layer resolution relative to ``cell_size`` (1, 1/2, 1/4): cells are ``cell_size / downsample`` wide.
-    threshold : float
-        Paper Eq. 8: skip a layer pair when ``R_d(|i-l| dz) < t R_d(0)``; 0 keeps all pairs.
-    splat : {"linear", "half"}
-        Depth splatting: linear weights, or half and half to the two nearest layers (the paper's rule).
-    correction : {"none", "plane"}
-        ``none``: the paper's method. ``plane``: add the local-plane correction (:mod:`.correction`) wherever
-        :meth:`exitance` is given the query normals.
-    memory_limit : int, optional
-        Refuse grids whose estimated memory exceeds this many bytes (default: 75 % of available memory).
-    kernel_tail : float
-        Kernels reach the radius holding all but this fraction of the profile's energy (bounded by the grid).
-    workers : int
-        Threads for ``scipy.fft`` (-1: all cores).
+    **params
+        The declared :attr:`parameters` (``convsss.transport.TRANSPORTS["convolution"].parameters``): ``layers``,
+        ``threshold``, ``downsample``, ``splat``, ``correction``; and, set by the renderer or a numpy caller,
+        ``cell_size`` (or ``resolution``), ``memory_limit``, ``kernel_tail``, ``workers``.
     """
 
     name = "convolution"
+    parameters = (
+        Parameter("layers", int, 8, "Layers parallel to the image plane (paper §4; 4-8 is the paper's trade-off).",
+                  low=2, high=MAX_LAYERS),
+        Parameter("threshold", float, 1e-3, "Skip layer pairs whose profile falls below this fraction of R_d(0) "
+                  "(paper Eq. 8; 0 keeps every pair).", low=0.0, high=0.999),
+        Parameter("downsample", float, 1.0, "Layer resolution relative to the image (paper §5, Fig. 3).",
+                  choices=DOWNSAMPLES),
+        Parameter("splat", str, "linear", "Irradiance into the two nearest layers: by depth (linear) or half and half "
+                  "(the paper's rule).", choices=SPLATS),
+        Parameter("correction", str, "plane", "plane: correct the layers' depth discretization with their exact "
+                  "response to the surface's tangent plane (beyond the paper); none: the paper's method as "
+                  "published.", choices=CORRECTIONS),
+        Parameter("cell_size", float, None, "Grid cell in mm at full resolution (the pixel footprint at the "
+                  "object); default: the samples' image-plane extent / resolution.", low=0.0, low_open=True,
+                  exposed=False),
+        Parameter("resolution", int, None, "Cells across the larger image-plane extent when cell_size is not given "
+                  f"(default {DEFAULT_RESOLUTION}).", low=2, exposed=False),
+        Parameter("memory_limit", float, None, "Refuse grids needing more bytes (default: 75 % of available "
+                  "memory).", low=0.0, low_open=True, exposed=False),
+        Parameter("kernel_tail", float, 1e-4, "Kernels reach the radius holding all but this fraction of the "
+                  "profile's energy (bounded by the grid).", low=0.0, high=0.1, low_open=True, exposed=False),
+        Parameter("workers", int, -1, "Threads for scipy.fft (-1: all cores).", low=-1, exposed=False),
+    )
 
-    def __init__(self, samples, profile, frame, layers=8, cell_size=None, resolution=None, downsample=1.0,
-                 threshold=1e-3, splat="linear", correction="none", memory_limit=None, kernel_tail=1e-4, workers=-1):
-        super().__init__(samples, profile)
+    def __init__(self, samples, profile, frame, **params):
+        super().__init__(samples, profile, frame, **params)
+        p = self.params
         if not isinstance(frame, ViewFrame):
             raise ConvsssError("the convolution transport needs the camera's ViewFrame (frame=...)")
-        self._check_parameters(layers, cell_size, resolution, downsample, threshold, splat, correction)
-        if correction == "plane" and samples.normal is None:
-            raise ConvsssError("the plane correction needs the samples' normals")
-        self.frame, self.workers = frame, workers
-        self.threshold, self.splat, self.downsample = float(threshold), splat, float(downsample)
-        self.correction = correction
+        if p["cell_size"] is not None and p["resolution"] is not None:
+            raise ConvsssError("give the grid's cell_size or its resolution, not both")
+        self.workers = p["workers"]
+        self.threshold, self.splat, self.downsample = p["threshold"], p["splat"], p["downsample"]
+        self.correction = p["correction"]
+        splat, correction, workers = self.splat, self.correction, self.workers
 
         with self.timings("splat"):
             self._view = frame.to_view(samples.position)
-            self._setup_grid(layers, cell_size, resolution, profile, kernel_tail)
+            self._setup_grid(p["layers"], p["cell_size"], p["resolution"], profile, p["kernel_tail"])
+        if self.correction == "plane" and self.n_layers > 1 and samples.normal is None:
+            raise ConvsssError("the plane correction needs the samples' normals (or correction='none')")
         self.memory_bytes = self._memory_estimate()
-        limit = memory_limit if memory_limit is not None else 0.75 * (available_memory() or np.inf)
+        limit = p["memory_limit"] if p["memory_limit"] is not None else 0.75 * (available_memory() or np.inf)
         if self.memory_bytes > limit:
             raise ConvsssError(f"the convolution grid {self.grid_shape} x {self.n_layers} layers (FFT "
                                f"{self.padded_shape}) needs about {self.memory_bytes / 2**30:.1f} GiB, more than the "
@@ -241,25 +252,6 @@ class ConvolutionTransport(Transport):
         del grid
         self._exitance_layers = np.zeros((self.n_layers, 3) + self.grid_shape, dtype=np.float32)
         self.computed = np.zeros(self.n_layers, dtype=bool)
-
-    @staticmethod
-    def _check_parameters(layers, cell_size, resolution, downsample, threshold, splat, correction):
-        if int(layers) != layers or layers < 1:
-            raise ConvsssError(f"layers={layers!r} is not allowed: it must be an integer >= 1")
-        if cell_size is not None and resolution is not None:
-            raise ConvsssError("give the grid's cell_size or its resolution, not both")
-        if cell_size is not None and not (np.isfinite(cell_size) and cell_size > 0):
-            raise ConvsssError(f"cell_size={cell_size!r} is not allowed: it must be a finite length > 0 (mm)")
-        if resolution is not None and (int(resolution) != resolution or resolution < 2):
-            raise ConvsssError(f"resolution={resolution!r} is not allowed: it must be an integer >= 2")
-        if not (np.isfinite(downsample) and 0 < downsample <= 1):
-            raise ConvsssError(f"downsample={downsample!r} is not allowed: it must lie in (0, 1] (e.g. 1, 0.5, 0.25)")
-        if not (np.isfinite(threshold) and 0 <= threshold < 1):
-            raise ConvsssError(f"threshold={threshold!r} is not allowed: it must lie in [0, 1)")
-        if splat not in SPLATS:
-            raise ConvsssError(f"splat={splat!r} is not allowed: choose one of {', '.join(SPLATS)}")
-        if correction not in CORRECTIONS:
-            raise ConvsssError(f"correction={correction!r} is not allowed: choose one of {', '.join(CORRECTIONS)}")
 
     def _setup_grid(self, layers, cell_size, resolution, profile, kernel_tail):
         lo, hi = self._view.min(axis=0), self._view.max(axis=0)
@@ -400,3 +392,6 @@ class ConvolutionTransport(Transport):
             "memory_bytes": self.memory_bytes,
         })
         return stats
+
+
+register_transport(ConvolutionTransport)

@@ -8,7 +8,7 @@ with numba, parallel over query points on all cores. ``R_d`` comes from the prof
 import numba
 import numpy as np
 
-from .base import Transport
+from .base import Transport, register_transport
 
 
 @numba.njit(inline="always", fastmath=True)
@@ -55,8 +55,8 @@ class ExactTransport(Transport):
 
     name = "exact"
 
-    def __init__(self, samples, profile):
-        super().__init__(samples, profile)
+    def __init__(self, samples, profile, frame=None, **params):
+        super().__init__(samples, profile, frame, **params)
         with self.timings("profile_table"):
             self._r_scale, self._ds, self._table = profile.radial_table()
             self._r_max = self._r_scale * np.expm1(self._ds * (len(self._table) - 1))
@@ -70,3 +70,6 @@ class ExactTransport(Transport):
     def _exitance(self, points):
         return _direct_sum(points, self.samples.position, self._flux, self._r_scale, self._ds, self._table,
                            self._r_max)
+
+
+register_transport(ExactTransport)

@@ -1,0 +1,96 @@
+"""One contract, every registered transport (as Mitsuba runs one suite over its ``INTEGRATORS``): a thick slab under
+uniform light exits ``R_total E``; a point source reproduces ``R_d(r)``; a lit sphere agrees with the exact sum;
+the same inputs give the same output bit for bit; exitance is never negative; parameters are declared and checked."""
+
+import numpy as np
+import pytest
+
+from convsss import material
+from convsss.errors import ConvsssError
+from convsss.samples import IrradianceSamples, ViewFrame
+from convsss.transport import TRANSPORTS, make_transport
+
+FRAME = ViewFrame.look_at(origin=[0, 0, 50], target=[0, 0, 0])
+KINDS = sorted(TRANSPORTS)
+#: Per transport, settings that make it accurate on these small cases (the contract is about correctness).
+ACCURATE = {"convolution": {"layers": 16, "threshold": 0.0, "resolution": 256}, "hierarchical": {"epsilon": 0.01}}
+
+
+def _make(kind, samples, profile, **params):
+    return make_transport(kind, samples, profile, FRAME, **{**ACCURATE.get(kind, {}), **params})
+
+
+def _slab(half_width, spacing):
+    n = int(np.ceil(2 * half_width / spacing))
+    xs = (np.arange(n) + 0.5) * spacing - n * spacing / 2
+    x, y = np.meshgrid(xs, xs)
+    position = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+    return IrradianceSamples(position, spacing**2, np.ones((len(position), 3)),
+                             np.tile([0.0, 0.0, 1.0], (len(position), 1)))
+
+
+def _sphere(n=3000, radius=2.0):
+    k = np.arange(n) + 0.5
+    phi, theta = np.arccos(1 - 2 * k / n), np.pi * (1 + 5**0.5) * k
+    normal = np.stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)], axis=1)
+    lit = np.maximum(normal @ (np.array([0.6, 0.3, 0.74]) / np.linalg.norm([0.6, 0.3, 0.74])), 0.0)
+    return IrradianceSamples(normal * radius, 4 * np.pi * radius**2 / n, lit[:, None] * np.ones(3), normal)
+
+
+def test_every_transport_registers_itself_with_declared_parameters():
+    assert {"exact", "convolution", "hierarchical"} <= set(TRANSPORTS)
+    for kind, cls in TRANSPORTS.items():
+        assert cls.name == kind
+        names = [p.name for p in cls.parameters]
+        assert len(names) == len(set(names)) and all(p.help for p in cls.parameters)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_slab_exits_total_reflectance(kind):
+    skin = material("skin1").profile()
+    slab = _slab(25.0, 0.25)
+    centre = np.array([[0.0, 0.0, 0.0], [0.5, -0.5, 0.0]])
+    exitance = _make(kind, slab, skin).exitance(centre)
+    np.testing.assert_allclose(exitance, np.tile(skin.total_reflectance, (2, 1)), rtol=0.01)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_point_source_reproduces_the_profile(kind):
+    """A unit flux at the centre of an unlit grid of samples (cell = mfp/4): M(r) = R_d(r) beyond three cells."""
+    milk = material("wholemilk")
+    cell = milk.mfp_mm.min() / 4
+    xs = (np.arange(101) - 50) * cell
+    x, y = np.meshgrid(xs, xs)
+    position = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+    irradiance = np.zeros_like(position)
+    irradiance[len(position) // 2] = 1.0
+    source = IrradianceSamples(position, 1.0, irradiance, np.tile([0.0, 0.0, 1.0], (len(position), 1)))
+    r = np.arange(3, 40) * cell
+    grid = {"resolution": None, "cell_size": cell} if kind == "convolution" else {}
+    exitance = _make(kind, source, milk.profile(), **grid).exitance(np.stack([r, 0 * r, 0 * r], axis=1))
+    np.testing.assert_allclose(exitance, milk.profile()(r), rtol=0.02)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_agrees_with_the_exact_sum_deterministic_and_non_negative(kind):
+    skin = material("skin1").profile()
+    samples = _sphere()
+    points, normals = samples.position[::7], samples.normal[::7]
+    exact = make_transport("exact", samples, skin).exitance(points)
+    first = _make(kind, samples, skin).exitance(points, normals)
+    again = _make(kind, samples, skin).exitance(points, normals)
+    np.testing.assert_array_equal(first, again)
+    assert first.min() >= 0
+    assert np.linalg.norm(first - exact) / np.linalg.norm(exact) < 0.03
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_unknown_and_bad_parameters_fail_in_one_line(kind):
+    skin = material("skin1").profile()
+    with pytest.raises(ConvsssError, match=f"the {kind} transport has no parameter 'bogus'"):
+        make_transport(kind, _sphere(100), skin, FRAME, bogus=1)
+    for p in TRANSPORTS[kind].parameters:
+        bad = "nonsense" if p.kind is not str else 3.5
+        with pytest.raises(ConvsssError, match=f"{p.name}=") as info:
+            make_transport(kind, _sphere(100), skin, FRAME, **{p.name: bad})
+        assert "\n" not in str(info.value)
