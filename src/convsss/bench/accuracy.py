@@ -45,10 +45,8 @@ import numpy as np
 from tqdm import tqdm
 
 from ..compare import FLOOR
-from ..transport import TRANSPORTS, make_transport
+from ..transport import TRANSPORTS, clear_caches, make_transport
 from ..transport.convolution import CORRECTIONS, DOWNSAMPLES
-from ..transport.correction import RESPONSES
-from ..transport.kernels import CACHE
 
 LAYERS = (2, 4, 8, 16)
 THRESHOLDS = (0.0, 0.001, 0.05)
@@ -177,8 +175,7 @@ def build_transport(config, samples, profile, frame, cell_size):
 
 def timed_run(config, samples, points, profile, frame, cell_size, normals=None):
     """One run: ``(seconds, exitance (K, 3), transport)``; kernels and plane-correction tables cold."""
-    CACHE.clear()
-    RESPONSES.clear()
+    clear_caches()
     start = time.perf_counter()
     transport = build_transport(config, samples, profile, frame, cell_size)
     exitance = transport.exitance(points, normals)

@@ -14,8 +14,8 @@ from tqdm import tqdm
 
 from ..materials import material
 from ..samples import IrradianceSamples, ViewFrame
+from ..transport import clear_caches
 from ..transport.convolution import ConvolutionTransport
-from ..transport.kernels import CACHE
 
 STAGES = ("splat", "kernels_cold", "kernels_cached", "forward_fft", "mixing", "inverse_fft", "lookup")
 
@@ -42,8 +42,8 @@ def fft_floor(padded_shape, forward, inverse, workers=-1):
 
 def transport_run(samples, query, frame, profile, resolution, layers, threshold):
     """One timed run: stage seconds (cold kernels, then a second build with cached ones) and the FFT floor."""
-    CACHE.clear()
-    common = dict(layers=layers, resolution=resolution, threshold=threshold)
+    clear_caches()
+    common = dict(layers=layers, resolution=resolution, threshold=threshold, correction="none")  # the paper's layers
     cold = ConvolutionTransport(samples, profile, frame, **common)
     warm = ConvolutionTransport(samples, profile, frame, **common)
     warm.compute_layers(range(warm.n_layers))

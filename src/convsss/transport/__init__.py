@@ -17,6 +17,15 @@ from .exact import ExactTransport
 from .hierarchical import HierarchicalTransport
 
 
+def clear_caches():
+    """Forget every cached kernel spectrum and plane-correction table (for cold timings, or to free memory)."""
+    from .correction import RESPONSES
+    from .kernels import CACHE
+
+    CACHE.clear()
+    RESPONSES.clear()
+
+
 def make_transport(kind, samples, profile, frame=None, **params):
     """The transport called ``kind``: ``TRANSPORTS[kind](samples, profile, frame, **params)``.
 
@@ -29,4 +38,4 @@ def make_transport(kind, samples, profile, frame=None, **params):
 
 
 __all__ = ["ConvolutionTransport", "ExactTransport", "HierarchicalTransport", "TRANSPORTS", "Transport",
-           "make_transport", "register_transport"]
+           "clear_caches", "make_transport", "register_transport"]

@@ -29,8 +29,8 @@ import numpy as np
 
 from ..parameters import Parameter
 from .base import Transport, register_transport
-from .exact import profile_lookup, sum_samples
 from .octree import Octree
+from .radial import RadialTable, profile_lookup, sum_samples
 
 #: Query points per parallel work item (one traversal stack each).
 _BLOCK = 64
@@ -125,8 +125,7 @@ class HierarchicalTransport(Transport):
         super().__init__(samples, profile, frame, **params)
         self.epsilon, self.leaf_size = self.params["epsilon"], self.params["leaf_size"]
         with self.timings("profile_table"):
-            self._r_scale, self._ds, self._table = profile.radial_table()
-            self._r_max = self._r_scale * np.expm1(self._ds * (len(self._table) - 1))
+            self._radial = RadialTable.of(profile)
         with self.timings("octree"):
             self.octree = Octree.build(samples.position, samples.area, samples.flux, self.leaf_size)
         self._max_depth = int(self.octree.depth.max())
@@ -136,9 +135,9 @@ class HierarchicalTransport(Transport):
         self._summed = 0
 
     def _exitance(self, points):
-        t = self.octree
+        t, r = self.octree, self._radial
         out, visited, approximated, summed = _traverse(
-            points, self.epsilon, self._r_scale, self._ds, self._table, self._r_max, t.position, t.flux, t.start,
+            points, self.epsilon, r.r_scale, r.ds, r.values, r.r_max, t.position, t.flux, t.start,
             t.end, t.first_child, t.child_count, t.node_area, t.node_flux, t.center, t.box_lo, t.box_hi,
             self._max_depth)
         self._queries += len(points)

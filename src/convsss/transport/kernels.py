@@ -19,7 +19,7 @@ import numba
 import numpy as np
 import scipy.fft
 
-from .exact import profile_lookup
+from .radial import profile_lookup
 
 _SUBCELL_REACH = 32.0  # sub-cells per cell at distance h, falling as 1/rho
 _MAX_SUBCELLS = 256
