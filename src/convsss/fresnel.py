@@ -40,6 +40,8 @@ def fresnel_reflectance(eta, cos_theta):
     """
     eta = check_eta(eta)
     cos_i = np.clip(np.abs(np.asarray(cos_theta, dtype=np.float64)), 0.0, 1.0)
+    if eta == 1.0:  # index-matched: no boundary, no reflection (also at grazing incidence, where the formula is 0/0)
+        return np.zeros_like(cos_i)
     sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
     tir = sin2_t >= 1.0
     cos_t = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))

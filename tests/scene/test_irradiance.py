@@ -74,3 +74,13 @@ def test_area_light_matches_point_light_far_away(mi, irr):
     cos_surface = np.clip(np.einsum("ij,ij->i", pts, d) / r, 0, None)
     expected = 400 * 1.0 * cos_surface * (d[:, 2] / r) / r**2
     assert e.sum() == pytest.approx(expected.sum(), rel=0.02)
+
+
+@pytest.mark.parametrize("eta", [1.0, 1.3, 1.5])
+def test_dr_jit_and_numpy_fresnel_transmittance_agree(mi, eta):
+    """Irradiance (Dr.Jit) and shading (numpy) each need F_t; they are one function in two array libraries."""
+    from convsss.fresnel import fresnel_transmittance as numpy_ft
+    from convsss.scene.irradiance import fresnel_transmittance as drjit_ft
+
+    cos = np.linspace(0.0, 1.0, 101)
+    np.testing.assert_allclose(drjit_ft(eta, mi.Float(cos.astype(np.float32))).numpy(), numpy_ft(eta, cos), atol=1e-6)

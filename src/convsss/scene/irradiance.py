@@ -27,6 +27,7 @@ import drjit as dr
 import numpy as np
 
 from ..backend import load_mitsuba
+from .mis import power_heuristic
 
 mi = load_mitsuba()
 
@@ -110,13 +111,6 @@ def fresnel_transmittance(eta, cos_theta):
     return 1.0 - mi.fresnel(dr.abs(cos_theta), eta)[0]
 
 
-def _power(a, b):
-    """Power heuristic ``a^2 / (a^2 + b^2)`` (0 where undefined)."""
-    a2, b2 = a * a, b * b
-    w = a2 / (a2 + b2)
-    return dr.select(dr.isfinite(w), w, 0.0)
-
-
 def _delta_irradiance(scene, emitters, it, eta):
     """``sum_e F_t cos I_e/r^2 V`` over the delta emitters ``emitters`` (exact: one deterministic sample each)."""
     total = dr.zeros(mi.Color3f, dr.width(it.p))
@@ -139,7 +133,7 @@ def _area_irradiance(scene, emitters, it, eta, rng):
         cos = dr.dot(it.n, ds.d)
         ok = (cos > 0) & (ds.pdf > 0)
         ok &= ~scene.ray_test(it.spawn_ray_to(ds.p), ok)
-        mis = _power(ds.pdf, cos / dr.pi)
+        mis = power_heuristic(ds.pdf, cos / dr.pi)
         total += dr.select(ok, weight * cos * fresnel_transmittance(eta, cos) * mis, 0.0)
     # Strategy 2: a cosine-weighted direction; whatever emitter it reaches first counts (cos / pdf = pi).
     u = mi.Point2f(rng.next_float32(), rng.next_float32())
@@ -149,7 +143,7 @@ def _area_irradiance(scene, emitters, it, eta, rng):
     emitter = si.emitter(scene)
     radiance = emitter.eval(si)
     pdf_emitter = emitter.pdf_direction(it, mi.DirectionSample3f(scene, si, it))
-    mis = _power(cos / dr.pi, pdf_emitter)
+    mis = power_heuristic(cos / dr.pi, pdf_emitter)
     total += dr.select(cos > 0, radiance * dr.pi * fresnel_transmittance(eta, cos) * mis, 0.0)
     return total
 

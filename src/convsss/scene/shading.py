@@ -27,16 +27,11 @@ import numpy as np
 
 from ..backend import load_mitsuba
 from ..fresnel import fresnel_transmittance
+from .mis import power_heuristic
 
 mi = load_mitsuba()
 
 MAX_EMITTERS_SUMMED = 8
-
-
-def _power(a, b):
-    a2, b2 = a * a, b * b
-    w = a2 / (a2 + b2)
-    return dr.select(dr.isfinite(w), w, 0.0)
 
 
 def _to_numpy3(v):
@@ -154,7 +149,7 @@ class Shader:
             value_r, pdf_r = bsdf.eval_pdf(self.ctx_reflect, si, wo_local, reflect)
             value = dr.select(reflect, value_r, value)
             pdf = dr.select(reflect, pdf_r, pdf)
-        result = light * value * dr.select(ds.delta, 1.0, _power(ds.pdf, pdf))
+        result = light * value * dr.select(ds.delta, 1.0, power_heuristic(ds.pdf, pdf))
         if self.params.specular == "phong":
             result = dr.select(translucent, self._phong(si, ray_d, eta, ds, light), result)
         return dr.select(alive, result, 0.0)
@@ -262,4 +257,4 @@ class Shader:
             pdf_light = emitter.pdf_direction(prev, ds)
         else:
             pdf_light = self.scene.pdf_emitter_direction(prev, ds)
-        return radiance * dr.select(prev_delta, 1.0, _power(prev_pdf, pdf_light))
+        return radiance * dr.select(prev_delta, 1.0, power_heuristic(prev_pdf, pdf_light))
