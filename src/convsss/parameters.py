@@ -31,7 +31,17 @@ class Parameter:
     exposed: bool = True
 
     def allowed(self):
-        """What is allowed, in words (for errors and help)."""
+        """What is allowed, in words (for errors and help).
+
+        Examples
+        --------
+        >>> Parameter("layers", int, 8, "Layers.", low=2, high=256).allowed()
+        'a whole number >= 2 and <= 256'
+        >>> Parameter("layers", int, 8, "Layers.", low=2, high=256).check(1)
+        Traceback (most recent call last):
+        ...
+        convsss.errors.ConvsssError: layers=1 is not allowed: it must be a whole number >= 2 and <= 256
+        """
         if self.choices:
             return "one of " + ", ".join(_show(c) for c in self.choices)
         bounds = []

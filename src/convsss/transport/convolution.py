@@ -103,7 +103,7 @@ def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
                 _, w_hi = _layer_of(view[k, 2], z0, dz, n_layers)
                 if half and n_layers > 1:
                     w_hi = 0.5
-                wl = w_hi if upper == 1 else 1.0 - w_hi
+                wl = w_hi if upper == 1 else 1.0 - w_hi  # paper §4.1: irradiance into the two nearest layers
                 deposited[layer] += wl * np.sum(flux[k])
                 for dj in range(2):
                     wy = fy if dj == 1 else 1.0 - fy
@@ -126,7 +126,7 @@ def _mix(phi_hat, kernel_hat, out_layers, source_layers, keep, out):
                     m = abs(source_layers[s] - out_layers[o])
                     if not keep[m, c]:
                         continue
-                    k_row = kernel_hat[m, c, ky]
+                    k_row = kernel_hat[m, c, ky]  # paper Eq. 6: M^_l += K^_{|i-l|} E^_i, per frequency
                     p_row = phi_hat[s, c, ky]
                     for kx in range(n_freq_x):
                         row[kx] += k_row[kx] * p_row[kx]
@@ -151,7 +151,7 @@ def _lookup(view, x0, y0, h, z0, dz, n_layers, exitance, out):
                 layer = exitance[lo + dl, c]
                 bilinear = ((1 - fy) * ((1 - fx) * layer[j, i] + fx * layer[j, i + 1])
                             + fy * ((1 - fx) * layer[j + 1, i] + fx * layer[j + 1, i + 1]))
-                acc += wl * bilinear
+                acc += wl * bilinear  # paper Eq. 7: M linear between the two nearest layers
             out[k, c] = acc
 
 
@@ -241,7 +241,7 @@ class ConvolutionTransport(Transport):
             self._kernel_hat, self.kernel_energy, self.kernels_cached = kernel_spectra(
                 table, r_core, self.cell, self.dz, self.n_layers, self.reach, self.padded_shape, workers)
             at_layers = profile(self.dz * np.arange(self.n_layers))
-            self.keep = at_layers >= self.threshold * profile(0.0)[None, :]
+            self.keep = at_layers >= self.threshold * profile(0.0)[None, :]  # paper Eq. 8, per channel
         if correction == "plane" and self.n_layers > 1:
             with self.timings("correction"):
                 self._response = cached_plane_response(profile, profile_key(table), self.dz, splat)
