@@ -76,3 +76,49 @@ def test_console_script_reports_bad_input_in_one_line():
     assert proc.stderr.strip().count("\n") == 0
     assert proc.stderr.startswith("error: unknown material 'wholemilkk'; did you mean 'Wholemilk'")
     assert "Traceback" not in proc.stderr
+
+
+def test_ctrl_c_ends_any_command_in_one_line():
+    code = "from convsss.cli import cli\n" \
+           "@cli.command()\n" \
+           "def probe():\n    raise KeyboardInterrupt\n" \
+           "cli.main(args=['probe'], prog_name='convsss')\n"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 130 and proc.stderr == "interrupted\n"
+
+
+# ---- compare and figures: outputs never overwrite inputs, one-line errors, nothing written ---------------------------
+def _snapshot(folder):
+    return {p.relative_to(folder): p.read_bytes() if p.is_file() else None for p in folder.rglob("*")}
+
+
+@pytest.fixture
+def images(tmp_path, monkeypatch):
+    """The working directory, with a.exr, b.png and mask.png."""
+    from convsss.image import write_exr, write_png
+
+    rgb = np.random.default_rng(1).random((8, 8, 3))
+    write_exr(tmp_path / "a.exr", rgb)
+    write_png(tmp_path / "b.png", rgb, method="none")
+    write_png(tmp_path / "mask.png", np.ones((8, 8, 3)), method="none")
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+@pytest.mark.parametrize("args, message", [
+    (("compare", "a.exr", "b.png", "-o", "b.png"), "output 'b.png' is an input of this command"),
+    (("compare", "a.exr", "b.png", "-o", "./a.exr"), "output 'a.exr' is an input of this command"),
+    (("compare", "a.exr", "b.png", "--mask", "mask.png", "-o", "mask.png"), "is an input of this command"),
+    (("compare", "a.exr", "b.png", "-o", "/proc/x/error.png"), "cannot write into '/proc/x'"),
+    (("compare", "a.exr", "b.png", "-o", "a.exr/error.png"), "not a folder"),
+    (("figures", "--only", ",", "--out", "figs"), "--only ',' names no figure"),
+    (("figures", "--out", "/proc/x"), "cannot write into '/proc/x'"),
+    (("figures", "--out", "a.exr"), "Invalid value for '--out'"),
+])
+def test_bad_outputs_fail_in_one_line_and_write_nothing(images, args, message):
+    before = _snapshot(images)
+    result = run(*args)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], result.stderr
+    assert "Traceback" not in result.output and _snapshot(images) == before

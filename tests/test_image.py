@@ -42,3 +42,16 @@ def test_failed_write_leaves_nothing(tmp_path):
 def test_missing_image():
     with pytest.raises(ConvsssError, match="does not exist"):
         read_image("/nonexistent/x.exr")
+
+
+@pytest.mark.parametrize("settings, message", [
+    ({"key": 0.0}, "key=0.0"), ({"key": -1.0}, "key=-1.0"), ({"key": float("nan")}, "key=nan"),
+    ({"key": float("inf")}, "key=inf"), ({"exposure": float("nan")}, "exposure=nan"),
+    ({"exposure": float("-inf"), "method": "exposure"}, "exposure=-inf"),
+])
+def test_bad_tone_mapping_settings_fail_before_writing(tmp_path, settings, message):
+    with pytest.raises(ConvsssError, match=message):
+        tonemap(np.ones((2, 2, 3)), **settings)
+    with pytest.raises(ConvsssError, match=message):
+        write_png(tmp_path / "a.png", np.ones((2, 2, 3)), **settings)
+    assert list(tmp_path.iterdir()) == []

@@ -119,3 +119,19 @@ def test_profile_csv_bad_header(tmp_path):
         TabulatedProfile.from_csv(path)
     with pytest.raises(ConvsssError, match="does not exist"):
         TabulatedProfile.from_csv(tmp_path / "missing.csv")
+
+
+@pytest.mark.parametrize("text", ["r_mm,R,G\n0,1,1\n1,0.5,0.5\n", "r_mm,R,G,B\n0,1,1\n1,0.5,0.5\n"])
+def test_profile_csv_with_three_columns(tmp_path, text):
+    path = tmp_path / "p.csv"
+    path.write_text(text)
+    with pytest.raises(ConvsssError, match="has 3 columns: a profile needs 4 columns r_mm, R, G, B"):
+        TabulatedProfile.from_csv(path)
+
+
+def test_profile_csv_that_is_not_text(tmp_path):
+    path = tmp_path / "p.exr"
+    path.write_bytes(b"v/1\x01\x02\x00\x00\x00channels\x00chlist\x00\x80\xff\xfe" * 8)
+    with pytest.raises(ConvsssError, match="is not a CSV") as info:
+        TabulatedProfile.from_csv(path)
+    assert "\n" not in str(info.value)

@@ -1,8 +1,10 @@
-"""Output files are written whole or not at all; values made ready for JSON.
+"""Output files are written whole or not at all, and never over an input; values made ready for JSON.
 
-Every file the project writes (images, stats, reports, caches) goes through :func:`atomic_write`: the content is
-written to a temporary file in the target folder and renamed over the target only when complete, so an interrupted
-or failed write leaves no partial file behind.
+Every file the project writes (images, stats, reports, caches) goes through :func:`write_files` (or
+:func:`atomic_write`, its one-file form): each file's content is written to a temporary file in the target folder,
+and the targets are replaced only once every temporary file is complete, so a failed or interrupted command leaves
+neither a partial file nor a partial set of files behind. Commands call :func:`check_outputs` before any work: an
+output that is one of the command's inputs, a folder, or in a folder that cannot be written is refused in one line.
 """
 
 import math
@@ -12,21 +14,131 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import ConvsssError
+
+
+def check_outputs(outputs, inputs=()):
+    """Refuse, before any work, output paths that cannot or must not be written.
+
+    Parameters
+    ----------
+    outputs : iterable of str or Path
+        The files the command will write.
+    inputs : iterable of str or Path
+        The files the command reads (scene, meshes, textures, profiles, images); none of them may be overwritten.
+
+    Raises
+    ------
+    ConvsssError
+        When an output is an input (the same resolved path, or the same file under another name), is named twice,
+        is an existing folder, or lies in a folder that neither exists nor can be created, or cannot be written.
+
+    Examples
+    --------
+    >>> check_outputs(["a.png"], inputs=["x/../a.png"])
+    Traceback (most recent call last):
+    ...
+    convsss.errors.ConvsssError: output 'a.png' is an input of this command ('x/../a.png'): choose another output path
+    """
+    outputs = [Path(p) for p in outputs]
+    for out in outputs:
+        for source in map(Path, inputs):
+            if _same_file(out, source):
+                raise ConvsssError(f"output {str(out)!r} is an input of this command ({str(source)!r}): "
+                                   "choose another output path")
+    for k, out in enumerate(outputs):
+        if any(_same_file(out, other) for other in outputs[:k]):
+            raise ConvsssError(f"output {str(out)!r} is named twice: give each output its own path")
+    _refuse_folders(outputs)
+    for folder in {out.parent for out in outputs}:
+        _check_writable(folder)
+
+
+def _same_file(a, b):
+    if a.resolve() == b.resolve():
+        return True
+    return a.exists() and b.exists() and os.path.samefile(a, b)
+
+
+def _refuse_folders(paths):
+    for path in paths:
+        if path.is_dir():
+            raise ConvsssError(f"output {str(path)!r} is a folder: give a file path")
+
+
+def _check_writable(folder):
+    """``folder`` exists and takes a new file, or its nearest existing ancestor is a folder that does."""
+    existing = folder.absolute()
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ConvsssError(f"cannot write into {str(folder)!r}: {str(existing)!r} is a file, not a folder")
+    try:
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as error:
+        where = "" if existing == folder.absolute() else f" (cannot create a file or folder in {str(existing)!r})"
+        raise ConvsssError(f"cannot write into {str(folder)!r}{where}: {error.strerror or error}") from None
+
+
+def write_files(writers):
+    """Write several files as one: all of them or none.
+
+    Every file is first written to a temporary file beside its target, in order; only when all are complete are
+    they renamed over their targets. If any write fails (or is interrupted), every temporary file is removed and
+    no target is touched.
+
+    Parameters
+    ----------
+    writers : dict
+        ``{path: write}``, where ``write(tmp_path)`` writes the file's whole content to ``tmp_path`` (a str).
+
+    Returns
+    -------
+    list of Path
+        The paths written, in the order given.
+
+    Raises
+    ------
+    ConvsssError
+        When a target is an existing folder (before anything is written), or a file cannot be created.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> [p.name for p in write_files({folder / "a.txt": lambda tmp: Path(tmp).write_text("a"),
+    ...                               folder / "b.txt": lambda tmp: Path(tmp).write_text("b")})]
+    ['a.txt', 'b.txt']
+    """
+    paths = [Path(p) for p in writers]
+    _refuse_folders(paths)
+    temps = []
+    try:
+        for path, write in zip(paths, writers.values()):
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+            os.close(fd)
+            temps.append(tmp)
+            write(tmp)
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes private files; a written output is an ordinary one
+        for tmp, path in zip(temps, paths):
+            os.replace(tmp, path)
+    except BaseException as error:
+        for tmp in temps:
+            Path(tmp).unlink(missing_ok=True)
+        if isinstance(error, OSError):
+            raise ConvsssError(f"cannot write {str(path)!r}: {error.strerror or error}") from None
+        raise
+    return paths
+
 
 def atomic_write(path, write):
-    """Call ``write(tmp_path)`` on a temporary file beside ``path``, then rename it over ``path``; return the path."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes private files; a written output is an ordinary one
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    """Call ``write(tmp_path)`` on a temporary file beside ``path``, then rename it over ``path``; return the path.
+
+    The one-file form of :func:`write_files`.
+    """
+    return write_files({path: write})[0]
 
 
 def _umask():

@@ -8,9 +8,10 @@ Tone mapping (for display only; EXRs stay linear):
 - ``exposure``: ``rgb * 2^exposure``, clipped;
 - ``none``: clipped as is.
 
-Then sRGB encoding and 8 bits.
+Then sRGB encoding and 8 bits. The key must be finite and positive, the exposure finite (:func:`check_tonemap`).
 """
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -27,18 +28,45 @@ def luminance(rgb):
     return np.asarray(rgb, dtype=np.float64)[..., :3] @ _LUMINANCE
 
 
+def check_tonemap(method="reinhard", key=0.18, exposure=0.0):
+    """Raise :class:`~convsss.errors.ConvsssError` unless the tone mapping's settings are usable.
+
+    Parameters
+    ----------
+    method : str
+        One of :data:`TONEMAPS`.
+    key : float
+        Reinhard's key value: finite and > 0.
+    exposure : float
+        Stops: finite.
+
+    Examples
+    --------
+    >>> check_tonemap("reinhard", key=0.0)
+    Traceback (most recent call last):
+    ...
+    convsss.errors.ConvsssError: key=0.0 is not allowed: the tone mapping's key must be finite and > 0
+    """
+    if method not in TONEMAPS:
+        raise ConvsssError(f"unknown tone mapping {method!r}: choose one of {', '.join(TONEMAPS)}")
+    if not (math.isfinite(key) and key > 0):
+        raise ConvsssError(f"key={key!r} is not allowed: the tone mapping's key must be finite and > 0")
+    if not math.isfinite(exposure):
+        raise ConvsssError(f"exposure={exposure!r} is not allowed: the exposure (stops) must be finite")
+
+
 def tonemap(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
     """Linear RGB (H, W, 3) to display values in [0, 1] (before sRGB encoding).
 
     ``mask`` (H, W) restricts the log-average of the Reinhard operator to the pixels that matter (e.g. the object).
+    Bad settings raise :class:`~convsss.errors.ConvsssError` (:func:`check_tonemap`).
     """
+    check_tonemap(method, key, exposure)
     rgb = np.maximum(np.nan_to_num(np.asarray(rgb, dtype=np.float64)[..., :3]), 0.0)
     if method == "none":
         return np.clip(rgb, 0.0, 1.0)
     if method == "exposure":
         return np.clip(rgb * 2.0 ** float(exposure), 0.0, 1.0)
-    if method != "reinhard":
-        raise ConvsssError(f"unknown tone mapping {method!r}: choose one of {', '.join(TONEMAPS)}")
     lum = luminance(rgb) * 2.0 ** float(exposure)
     region = lum[mask] if mask is not None and np.any(mask) else lum[lum > 0]
     if region.size == 0:
@@ -66,20 +94,31 @@ def _bitmap(array):
     return mi, mi.Bitmap(np.ascontiguousarray(array))
 
 
-def write_exr(path, rgb):
-    """Write linear RGB (H, W, 3) as a float32 OpenEXR file, atomically."""
+def exr_writer(rgb):
+    """``write(path)``, saving linear RGB (H, W, 3) as a float32 OpenEXR file: one entry of
+    :func:`convsss.files.write_files`, which writes several files together."""
     rgb = np.asarray(rgb, dtype=np.float32)
     if rgb.ndim != 3 or rgb.shape[2] < 3:
         raise ConvsssError(f"an RGB image must have shape (H, W, 3), got {rgb.shape}")
     mi, bitmap = _bitmap(rgb[..., :3])
-    return atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.OpenEXR))
+    return lambda path: bitmap.write(path, mi.Bitmap.FileFormat.OpenEXR)
+
+
+def png_writer(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
+    """``write(path)``, saving linear RGB (H, W, 3) tone-mapped (:func:`tonemap`) as an 8-bit sRGB PNG: one entry of
+    :func:`convsss.files.write_files`."""
+    mi, bitmap = _bitmap(srgb_encode(tonemap(rgb, method, key, exposure, mask)))
+    return lambda path: bitmap.write(path, mi.Bitmap.FileFormat.PNG)
+
+
+def write_exr(path, rgb):
+    """Write linear RGB (H, W, 3) as a float32 OpenEXR file, atomically. Returns the path."""
+    return atomic_write(path, exr_writer(rgb))
 
 
 def write_png(path, rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
     """Tone-map linear RGB (H, W, 3) and write an 8-bit sRGB PNG, atomically. Returns the path."""
-    pixels = srgb_encode(tonemap(rgb, method, key, exposure, mask))
-    mi, bitmap = _bitmap(pixels)
-    return atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.PNG))
+    return atomic_write(path, png_writer(rgb, method, key, exposure, mask))
 
 
 def read_image(path):

@@ -235,21 +235,45 @@ class TabulatedProfile(Profile):
 
     @classmethod
     def from_csv(cls, path):
-        """Read a CSV with a header and the columns ``r_mm, R, G, B`` (one row per radius)."""
+        """Read a CSV with a header and the columns ``r_mm, R, G, B`` (one row per radius).
+
+        Parameters
+        ----------
+        path : str or Path
+            A text file: the header ``r_mm,R,G,B``, then at least 2 rows of 4 numbers (more columns are ignored).
+
+        Returns
+        -------
+        TabulatedProfile
+
+        Raises
+        ------
+        ConvsssError
+            In one line, when the file is missing, not a text CSV, has a row of fewer than 4 columns, a value that
+            is not a number, or fewer than 2 rows of data (and for every check of the profile itself).
+        """
         path = Path(path)
         if not path.is_file():
             raise ConvsssError(f"profile file {str(path)!r} does not exist")
-        with path.open(newline="") as f:
-            rows = list(csv.reader(f))
+        try:
+            with path.open(newline="", encoding="utf-8") as f:
+                rows = [row for row in csv.reader(f) if row]
+        except (UnicodeDecodeError, csv.Error) as e:
+            raise ConvsssError(f"profile file {str(path)!r} is not a CSV (text with the columns r_mm, R, G, B): "
+                               f"{' '.join(str(e).split())}") from None
+        for k, row in enumerate(rows):
+            if len(row) < 4:
+                raise ConvsssError(f"profile file {str(path)!r} line {k + 1} has {len(row)} columns: "
+                                   "a profile needs 4 columns r_mm, R, G, B")
         header = [h.strip().lower() for h in rows[0]] if rows else []
         if header[:4] != ["r_mm", "r", "g", "b"]:
             got = rows[0] if rows else "nothing"
             raise ConvsssError(f"profile file {str(path)!r} must start with the header 'r_mm,R,G,B', got {got}")
         try:
-            table = np.array([[float(x) for x in row[:4]] for row in rows[1:] if row], dtype=np.float64)
+            table = np.array([[float(x) for x in row[:4]] for row in rows[1:]], dtype=np.float64).reshape(-1, 4)
         except ValueError as e:
             raise ConvsssError(f"profile file {str(path)!r} has a value that is not a number: {e}") from None
-        if table.ndim != 2 or table.shape[0] < 2:
+        if table.shape[0] < 2:
             raise ConvsssError(f"profile file {str(path)!r} needs at least 2 rows of data")
         return cls(table[:, 0], table[:, 1:4], name=path.name)
 

@@ -52,6 +52,8 @@ def test_select_parses_only():
     assert select("5,fig2") == ["fig2", "fig5"]
     with pytest.raises(ConvsssError, match="unknown figure"):
         select("fig9")
+    with pytest.raises(ConvsssError, match="names no figure"):
+        select(" , ")
 
 
 def test_caption_shows_parameters_c_seconds_and_errors():

@@ -1,6 +1,11 @@
 """The render, reference and scene commands, run as a user would (CliRunner), on tiny images."""
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +18,13 @@ from convsss.image import read_image
 
 def run(*args):
     return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def _src_path():
+    """The ``src`` folder this ``convsss`` was imported from, for a subprocess to import the same one."""
+    import convsss
+
+    return str(Path(convsss.__file__).parents[1])
 
 
 @pytest.fixture(scope="module")
@@ -142,3 +154,140 @@ def test_same_seed_same_png(scene_file, tmp_path):
         assert run("render", scene_file, "-o", out, "--seed", 7, "--no-progress").exit_code == 0
         images.append(read_image(out.with_suffix(".png")))
     np.testing.assert_array_equal(*images)
+
+
+# ---- Inputs are sacred, one-line errors, outputs together or not at all ----------------------------------------------
+def _snapshot(folder):
+    return {p.relative_to(folder): p.read_bytes() if p.is_file() else None for p in folder.rglob("*")}
+
+
+def _assert_refused(result, message, folder=None, before=None):
+    """Exit code 2, one line on stderr (``error: ...`` with ``message``), no traceback, every file as it was."""
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], result.stderr
+    assert "Traceback" not in result.output
+    if folder is not None:
+        assert _snapshot(folder) == before
+
+
+@pytest.fixture
+def studio(scene_file, tmp_path, monkeypatch):
+    """A folder (the working directory) with studio.xml: the test scene plus an environment map studio.exr named in
+    an included lights.xml; also a profile skin.csv and a mesh bunny.obj."""
+    from convsss.image import write_exr
+
+    write_exr(tmp_path / "studio.exr", np.full((4, 8, 3), 0.05))
+    (tmp_path / "lights.xml").write_text('<scene version="3.0.0"><emitter type="envmap">'
+                                         '<string name="filename" value="studio.exr"/></emitter></scene>')
+    (tmp_path / "studio.xml").write_text(
+        scene_file.read_text().replace("</scene>", '<include filename="lights.xml"/></scene>'))
+    (tmp_path / "skin.csv").write_text("r_mm,R,G,B\n0,1,1,1\n1,0.5,0.5,0.5\n")
+    (tmp_path / "bunny.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+QUICK = ("--mesh", "bunny.obj", "--material", "wholemilk", "--size-mm", 10)
+
+
+@pytest.mark.parametrize("args", [
+    ("render", "studio.xml", "-o", "studio"),
+    ("render", "studio.xml", "-o", "out.png", "--stats", "studio.xml"),
+    ("render", "studio.xml", "-o", "out", "--stats", "./lights.xml"),
+    ("render", "studio.xml", "-o", "out", "--profile", "skin.csv", "--stats", "skin.csv"),
+    ("render", *QUICK, "-o", "out", "--stats", "bunny.obj"),
+    ("reference", "studio.xml", "-o", "studio.exr"),
+    ("scene", *QUICK, "-o", "bunny.obj"),
+])
+def test_outputs_never_overwrite_inputs(studio, args):
+    before = _snapshot(studio)
+    result = run(*args, *(("--no-progress",) if args[0] != "scene" else ()))
+    _assert_refused(result, "is an input of this command", studio, before)
+
+
+@pytest.mark.parametrize("args, message", [
+    (("render", "-o", "/proc/x/img"), "cannot write into '/proc/x'"),
+    (("render", "-o", "studio.xml/img"), "not a folder"),
+    (("render", "-o", "out", "--stats", "/proc/x/stats.json"), "cannot write into '/proc/x'"),
+    (("render", "-o", "out", "--stats", "out.exr"), "named twice"),
+    (("render", "-o", "taken"), "'taken.png' is a folder"),
+    (("reference", "-o", "/proc/x/img"), "cannot write into '/proc/x'"),
+    (("reference", "-o", "studio.xml/img"), "not a folder"),
+    (("reference", "-o", "taken"), "'taken.png' is a folder"),
+])
+def test_unwritable_outputs_fail_before_the_render(studio, args, message):
+    (studio / "taken.png").mkdir()
+    before = _snapshot(studio)
+    _assert_refused(run(args[0], "studio.xml", *args[1:], "--no-progress"), message, studio, before)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_read_only_output_folder_fails_before_the_render(studio):
+    (studio / "ro").mkdir(mode=0o555)
+    _assert_refused(run("render", "studio.xml", "-o", "ro/img", "--no-progress"), "cannot write into 'ro'")
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--seed", -5), "Invalid value for '--seed': -5 is not in the range 0<=x<=4294967295"),
+    (("--seed", "1e23"), "Invalid value for '--seed'"),
+    (("--seed", 2**32), "Invalid value for '--seed'"),
+    (("--exposure", "nan"), "exposure=nan is not allowed"),
+    (("--key", 0), "key=0.0 is not allowed"),
+    (("--key", -1), "key=-1.0 is not allowed"),
+])
+@pytest.mark.parametrize("command", ["render", "reference"])
+def test_bad_option_values_fail_in_one_line(studio, command, args, message):
+    before = _snapshot(studio)
+    _assert_refused(run(command, "studio.xml", "-o", "out", *args, "--no-progress"), message, studio, before)
+
+
+@pytest.mark.parametrize("profile, message", [
+    ("studio.exr", "profile file 'studio.exr' is not a CSV"),
+    ("three.csv", "profile file 'three.csv' line 2 has 3 columns: a profile needs 4 columns r_mm, R, G, B"),
+])
+def test_bad_profile_files_fail_in_one_line(studio, profile, message):
+    (studio / "three.csv").write_text("r_mm,R,G,B\n0,1,1\n1,0.5,0.5\n")
+    before = _snapshot(studio)
+    _assert_refused(run("render", "studio.xml", "-o", "out", "--profile", profile, "--no-progress"), message, studio,
+                    before)
+
+
+def test_a_bad_integrator_parameter_in_the_scene_is_one_line(studio):
+    (studio / "layers.xml").write_text((studio / "studio.xml").read_text().replace(
+        "<scene version=\"3.0.0\">", '<scene version="3.0.0"><integrator type="convsss">'
+                                     '<integer name="layers" value="0"/></integrator>'))
+    before = _snapshot(studio)
+    result = run("render", "layers.xml", "-o", "out", "--no-progress")
+    _assert_refused(result, "layers=0", studio, before)
+    assert result.stderr.strip() == "error: layers=0 is not allowed: it must be a whole number >= 2 and <= 256"
+
+
+def test_the_largest_seed_renders_a_reference(scene_file, tmp_path):
+    result = run("reference", scene_file, "-o", tmp_path / "ref", "--seed", 2**32 - 1, "--spp", 2, "--pass-spp", 1,
+                 "--no-progress")
+    assert result.exit_code == 0, result.output
+    assert json.loads((tmp_path / "ref.json").read_text())["seed"] == 2**32 - 1
+
+
+def test_ctrl_c_ends_reference_in_one_line_without_outputs(scene_file, tmp_path):
+    """SIGINT during the first pass: exit code 130, `interrupted`, no traceback and no file written."""
+    out = tmp_path / "out" / "ref"
+    proc = subprocess.Popen([sys.executable, "-m", "convsss", "reference", str(scene_file), "-o", str(out),
+                             "--width", "16", "--height", "16", "--spp", "1000000", "--pass-spp", "4000"],
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": _src_path()})
+    started = ""
+    while "volpathmis" not in started:  # the progress bar shows once the scene is loaded, just before the 1st pass
+        char = proc.stderr.read(1)
+        assert char, f"reference ended before its first pass: {started}"
+        started += char
+    time.sleep(0.3)  # inside the first pass, which takes seconds
+    proc.send_signal(signal.SIGINT)
+    try:
+        code = proc.wait(timeout=30)
+    finally:
+        proc.kill()
+    stderr = started + proc.stderr.read()
+    assert code == 130, stderr
+    assert "Traceback" not in stderr and stderr.rstrip().endswith("interrupted")
+    assert not [p for p in tmp_path.rglob("*") if p.is_file()]

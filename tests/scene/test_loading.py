@@ -1,7 +1,9 @@
+from pathlib import Path
+
 import pytest
 
 from convsss.errors import ConvsssError
-from convsss.scene.loading import load_scene
+from convsss.scene.loading import load_scene, scene_inputs
 
 
 def test_resizes_the_film(mi, sphere_scene):
@@ -34,3 +36,40 @@ def test_translucent_meshes_of_one_material_stay_separate_objects(mi, sphere_sce
     scene = load_scene({**sphere_scene(), **cubes})
     names = [obj.name for obj in find_translucent_objects(mi, scene)]
     assert sorted(names) == ["left", "object", "right"]
+
+
+def test_a_plugin_error_is_its_own_message(tmp_path):
+    """A ConvsssError raised while Mitsuba builds the convsss integrator reaches the user as its message alone."""
+    path = tmp_path / "layers.xml"
+    path.write_text('<scene version="3.0.0"><integrator type="convsss"><integer name="layers" value="0"/>'
+                    '</integrator><sensor type="perspective"/></scene>')
+    with pytest.raises(ConvsssError) as info:
+        load_scene(path)
+    assert str(info.value) == "layers=0 is not allowed: it must be a whole number >= 2 and <= 256"
+
+
+def test_scene_inputs_finds_every_file_the_scene_names(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "scenes" / "parts").mkdir(parents=True)
+    (tmp_path / "textures").mkdir()
+    for name in ("scenes/studio.exr", "scenes/parts/lights.xml", "textures/wood.png", "scenes/bunny.ply"):
+        (tmp_path / name).touch()
+    (tmp_path / "scenes" / "parts" / "lights.xml").write_text(
+        '<scene version="3.0.0"><emitter type="envmap"><string name="filename" value="$env"/></emitter></scene>')
+    scene = tmp_path / "scenes" / "main.xml"
+    scene.write_text("""<scene version="3.0.0">
+        <default name="env" value="studio.exr"/>
+        <path value="../textures"/>
+        <integrator type="convsss"><string name="profile" value="/data/skin.csv"/></integrator>
+        <include filename="parts/lights.xml"/>
+        <shape type="ply"><string name="filename" value="bunny.ply"/>
+            <bsdf type="diffuse"><texture type="bitmap" name="reflectance">
+                <string name="filename" value="wood.png"/></texture></bsdf></shape>
+        <shape type="obj"><string name="filename" value="missing.obj"/></shape>
+    </scene>""")
+    found = [p.resolve() for p in scene_inputs(Path("scenes/main.xml"))]
+    expected = [scene, Path("/data/skin.csv"), tmp_path / "scenes/parts/lights.xml", tmp_path / "scenes/studio.exr",
+                tmp_path / "scenes/bunny.ply", tmp_path / "textures/wood.png", tmp_path / "scenes/missing.obj"]
+    assert found == expected
+    with pytest.raises(ConvsssError, match="does not exist"):
+        scene_inputs(tmp_path / "nope.xml")

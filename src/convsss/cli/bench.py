@@ -73,10 +73,12 @@ def bench_accuracy_command(quick, runs, resolution, size_mm, material, scenes, s
     from pathlib import Path
 
     from ..bench.accuracy import accuracy_plot, bench_accuracy, report_text
-    from ..files import json_ready, write_text
+    from ..files import check_outputs, json_ready, write_files
     from ..materials import material as lookup_material
 
     lookup_material(material)  # an unknown name fails before anything is loaded
+    outputs = {suffix: Path(out_dir) / f"accuracy.{suffix}" for suffix in ("png", "json", "txt")} if out_dir else {}
+    check_outputs(outputs.values())
     chosen = ("null", "dielectric") if scenes == "both" else (scenes,)
     options = dict(scenes=chosen, size_mm=size_mm, material=material, runs=runs, sample_density=sample_density,
                    progress=not as_json)
@@ -87,11 +89,10 @@ def bench_accuracy_command(quick, runs, resolution, size_mm, material, scenes, s
         result = bench_accuracy(resolution=resolution or 256, **options)
     result = json_ready(result)
     text = report_text(result)
-    if out_dir:
-        out = Path(out_dir)
-        plot = accuracy_plot(result, out / "accuracy.png")
-        write_text(out / "accuracy.json", json.dumps(result, indent=1))
-        write_text(out / "accuracy.txt", text + "\n")
-        result["meta"]["outputs"] = {"png": str(plot), "json": str(out / "accuracy.json"),
-                                     "txt": str(out / "accuracy.txt")}
+    if outputs:
+        data = json.dumps(result, indent=1)
+        write_files({outputs["png"]: lambda tmp: accuracy_plot(result, tmp),
+                     outputs["json"]: lambda tmp: Path(tmp).write_text(data),
+                     outputs["txt"]: lambda tmp: Path(tmp).write_text(text + "\n")})
+        result["meta"]["outputs"] = {suffix: str(path) for suffix, path in outputs.items()}
     click.echo(json.dumps(result, indent=1) if as_json else text)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from ..files import json_ready
+from ..files import check_outputs, json_ready
 from .main import cli
 
 _ROWS = (("rmse", "RMSE"), ("relmse", "relative MSE"), ("mean_rel_error", "mean relative error"),
@@ -45,6 +45,8 @@ def compare(reference, test, mask_path, output, limit, block, as_json):
     from ..compare import error_image
     from ..image import read_image, write_png
 
+    if output is not None:
+        check_outputs([output], [p for p in (reference, test, mask_path) if p is not None])
     a, b = read_image(reference), read_image(test)
     mask = None if mask_path is None else read_image(mask_path)
     labels = (reference.name, test.name)

@@ -1,9 +1,11 @@
 """``convsss figures``: the paper's test cases (Figs. 2–6) regenerated, with contact sheets and one report."""
 
 import time
+from pathlib import Path
 
 import click
 
+from ..files import check_outputs
 from .main import cli
 
 
@@ -38,6 +40,7 @@ def figures(quick, only, out_dir, progress):
     from ..figures.run import select
 
     names = select(only)
+    check_outputs([Path(out_dir) / "report.md", Path(out_dir) / "figures.json"])
     start = time.perf_counter()
     report, run = render_figures(names, QUICK if quick else FULL, out_dir, progress)
     click.echo(f"wrote {report} ({len(names)} figures, {sum(len(f['panels']) for f in run['figures'])} panels, "

@@ -1,6 +1,9 @@
 """The ``convsss`` command group and its error handling.
 
-Every command turns a :class:`~convsss.errors.ConvsssError` into ``error: <one line>`` on stderr and exit code 2.
+Every command turns bad input (a :class:`~convsss.errors.ConvsssError` or a bad option value) into
+``error: <one line>`` on stderr and exit code 2, and Ctrl-C into ``interrupted`` and exit code 130, without a
+traceback; outputs are written all together or not at all (:func:`convsss.files.write_files`), so an interrupted
+command leaves none half-written.
 """
 
 import warnings
@@ -10,9 +13,12 @@ import click
 from .. import __version__
 from ..errors import ConvsssError
 
+#: Exit code of a command stopped by Ctrl-C (128 + SIGINT, as shells report it).
+INTERRUPTED = 130
+
 
 class _ConvsssGroup(click.Group):
-    """A click group that reports bad input in one line (exit code 2) instead of a traceback."""
+    """A click group that reports bad input in one line (exit code 2) and Ctrl-C as ``interrupted`` (130)."""
 
     def invoke(self, ctx):
         try:
@@ -20,6 +26,13 @@ class _ConvsssGroup(click.Group):
         except ConvsssError as error:
             click.echo(f"error: {error}", err=True)
             ctx.exit(2)
+        except click.UsageError as error:
+            hint = f" (see '{error.ctx.command_path} --help')" if error.ctx is not None else ""
+            click.echo(f"error: {' '.join(error.format_message().split())}{hint}", err=True)
+            ctx.exit(2)
+        except KeyboardInterrupt:
+            click.echo("interrupted", err=True)
+            ctx.exit(INTERRUPTED)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -2,34 +2,32 @@
 
 import json
 import time
+from pathlib import Path
 
 import click
 
 from ..errors import ConvsssError
-from ..files import write_text
-from ..image import TONEMAPS
+from ..files import check_outputs, write_files
 from .main import cli
-from .render import load_source, output_stem, scene_source_options
+from .render import load_source, output_stem, scene_source_options, source_inputs, tonemap_options
 
 
 @cli.command()
 @scene_source_options
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Output stem: OUT.exr (linear), OUT.png (tone-mapped) and OUT.json (passes, spp, seconds), "
-                   "rewritten after every pass.")
+                   "rewritten together after every pass.")
 @click.option("--pass-spp", type=int, default=16, show_default=True,
               help="Samples per pixel of each pass; the image so far is saved after each pass.")
-@click.option("--tonemap", type=click.Choice(TONEMAPS), default="reinhard", show_default=True,
-              help="PNG tone mapping (see `convsss render --help`).")
-@click.option("--key", type=float, default=0.18, show_default=True, help="Key value of the Reinhard operator.")
-@click.option("--exposure", type=float, default=0.0, show_default=True, help="Exposure in stops.")
+@tonemap_options
 @click.option("--progress/--no-progress", default=True, show_default=True, help="Show a progress bar on stderr.")
 def reference(scene_file, mesh, material, size_mm, floor, boundary, width, height, spp, seed, output, pass_spp,
               tonemap, key, exposure, progress):
     """Render SCENE_FILE with Mitsuba's volumetric path tracer volpathmis: the ground truth of `convsss render`.
 
     Russian roulette is off and paths are unbounded. --spp is the total (default: the scene's sampler), rendered in
-    passes of --pass-spp; after every pass OUT.exr/OUT.png hold the mean so far, so a long run can be stopped.
+    passes of --pass-spp; after every pass OUT.exr/OUT.png hold the mean so far, so a long run can be stopped
+    (Ctrl-C keeps the last complete pass).
     A point light behind a smooth dielectric renders black in a path tracer: use a null boundary with point lights.
 
     \b
@@ -38,7 +36,7 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
     """
     from tqdm import tqdm
 
-    from ..image import write_exr, write_png
+    from ..image import exr_writer, png_writer
     from ..scene.reference import render_reference
 
     if pass_spp < 1:
@@ -46,24 +44,26 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
     if spp is not None and spp < 1:
         raise ConvsssError(f"--spp {spp} is not allowed: it must be >= 1")
     start = time.perf_counter()
+    stem = output_stem(output)
+    exr, png, info = (stem.with_suffix(suffix) for suffix in (".exr", ".png", ".json"))
+    check_outputs([exr, png, info], source_inputs(scene_file, mesh))
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height)
     total_spp = spp if spp is not None else (16 if scene_file is None else scene.sensors()[0].sampler().sample_count())
-    stem = output_stem(output)
     bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress)
 
     def save(image, done, index, n_passes):
-        write_exr(stem.with_suffix(".exr"), image)
-        write_png(stem.with_suffix(".png"), image, tonemap, key, exposure)
-        write_text(stem.with_suffix(".json"), json.dumps({
+        text = json.dumps({
             "command": "reference", "scene": str(scene_file) if scene_file else None, "integrator": "volpathmis",
             "rr_depth": "off", "max_depth": -1, "spp_done": done, "spp_requested": total_spp,
             "passes_done": index + 1, "passes": n_passes, "seed": seed,
-            "seconds": time.perf_counter() - start}, indent=1))
+            "seconds": time.perf_counter() - start}, indent=1)
+        write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure),
+                     info: lambda tmp: Path(tmp).write_text(text)})
         bar.update(done - bar.n)
 
     try:
         render_reference(scene, total_spp, pass_spp, seed, save)
     finally:
         bar.close()
-    click.echo(f"wrote {stem.with_suffix('.exr')} and {stem.with_suffix('.png')} "
+    click.echo(f"wrote {exr} and {png} "
                f"({total_spp} spp, {time.perf_counter() - start:.1f} s)")

@@ -1,7 +1,8 @@
 """``convsss render``: a Mitsuba scene (or a mesh and a material) rendered with the ``convsss`` integrator.
 
 Writes ``OUT.exr`` (linear) and ``OUT.png`` (tone-mapped), and with ``--stats`` a JSON file of parameters, per-stage
-seconds, grid/FFT shapes and the object's size in mean free paths. Files are written whole or not at all.
+seconds, grid/FFT shapes and the object's size in mean free paths. The files are written together or not at all,
+and never over an input of the render (the scene and every file it names, the mesh, the profile).
 """
 
 import json
@@ -13,11 +14,14 @@ import click
 import numpy as np
 
 from ..errors import ConvsssError
-from ..files import json_ready, write_text
-from ..image import TONEMAPS
+from ..files import check_outputs, json_ready, write_files
+from ..image import TONEMAPS, check_tonemap
 from .main import cli
 
 STAGES = ("scene_load", "samples", "irradiance", "transport", "shading", "write")
+
+#: Random seeds: Mitsuba's are unsigned 32-bit integers.
+SEED = click.IntRange(0, 2**32 - 1)
 
 
 def output_stem(output):
@@ -43,8 +47,39 @@ def scene_source_options(func):
         click.option("--width", type=int, help="Film width in pixels (default: the scene's; 800 with --mesh)."),
         click.option("--height", type=int, help="Film height in pixels (default: the scene's; 800 with --mesh)."),
         click.option("--spp", type=int, help="Samples per pixel (default: the scene's sampler; 16 with --mesh)."),
-        click.option("--seed", type=int, default=0, show_default=True,
-                     help="Random seed: the same seed gives the same image."),
+        click.option("--seed", type=SEED, default=0, show_default=True,
+                     help="Random seed, 0 to 2^32 - 1: the same seed gives the same image."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def source_inputs(scene_file, mesh):
+    """The files the scene-source options read: the scene file and every file it names, or the mesh."""
+    from ..scene.loading import scene_inputs
+    from ..scene.quick import demo_mesh
+
+    inputs = scene_inputs(scene_file) if scene_file else []
+    if mesh:
+        inputs.append(demo_mesh() if mesh == "bunny" else Path(mesh))
+    return inputs
+
+
+def _check_tonemap_option(ctx, param, value):
+    check_tonemap(**{param.name: value})
+    return value
+
+
+def tonemap_options(func):
+    """``--tonemap``, ``--key`` and ``--exposure`` for the PNG (shared by commands); bad values fail at once."""
+    options = [
+        click.option("--tonemap", type=click.Choice(TONEMAPS), default="reinhard", show_default=True,
+                     help="PNG tone mapping: Reinhard's photographic operator, exposure only, or none (clipped)."),
+        click.option("--key", type=float, default=0.18, show_default=True, callback=_check_tonemap_option,
+                     help="Key value of the Reinhard operator (> 0)."),
+        click.option("--exposure", type=float, default=0.0, show_default=True, callback=_check_tonemap_option,
+                     help="Exposure in stops, applied before tone mapping."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -162,11 +197,7 @@ class StageProgress:
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Output stem: writes OUT.exr (linear) and OUT.png (tone-mapped).")
 @integrator_options
-@click.option("--tonemap", type=click.Choice(TONEMAPS), default="reinhard", show_default=True,
-              help="PNG tone mapping: Reinhard's photographic operator, exposure only, or none (clipped).")
-@click.option("--key", type=float, default=0.18, show_default=True, help="Key value of the Reinhard operator.")
-@click.option("--exposure", type=float, default=0.0, show_default=True,
-              help="Exposure in stops, applied before tone mapping.")
+@tonemap_options
 @click.option("--stats", "stats_path", type=click.Path(dir_okay=False),
               help="Write a JSON file: parameters, per-stage seconds, grid and FFT shapes, pairs per layer, sample "
                    "count, and the object's size in mean free paths and diffusion lengths.")
@@ -190,7 +221,15 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
     quick = scene_file is None
     defaults = {"specular": "phong"} if quick else {}
     render_params(integrator, defaults)  # bad values fail before anything is loaded
+    profile = integrator["profile_csv"]
+    if profile:
+        from ..profiles import TabulatedProfile
+
+        TabulatedProfile.from_csv(profile)
     stem = output_stem(output)
+    exr, png = stem.with_suffix(".exr"), stem.with_suffix(".png")
+    check_outputs([exr, png, *([stats_path] if stats_path else [])],
+                  [*source_inputs(scene_file, mesh), *([profile] if profile else [])])
 
     from ..backend import load_mitsuba
 
@@ -214,22 +253,29 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
         seconds.update(integ.stats["seconds"])
         bar("write")
         t = time.perf_counter()
-        from ..image import write_exr, write_png
+        from ..image import exr_writer, png_writer
 
-        exr = write_exr(stem.with_suffix(".exr"), image)
-        png = write_png(stem.with_suffix(".png"), image, tonemap, key, exposure)
-        seconds["write"] = time.perf_counter() - t
+        stats = {"command": "render", "scene": str(scene_file) if scene_file else None,
+                 "quick": {"mesh": str(mesh), "material": material, "size_mm": size_mm, "floor": floor,
+                           "boundary": boundary} if quick else None,
+                 "seed": seed, "spp": spp_used, "outputs": {"exr": str(exr), "png": str(png)},
+                 "tonemap": {"method": tonemap, "key": key, "exposure": exposure},
+                 **integ.stats, "seconds": seconds}
+
+        def finish(tmp=None):
+            """Time the writes and the whole run; with ``tmp``, save the stats there (the last file written)."""
+            seconds.setdefault("write", time.perf_counter() - t)
+            seconds.setdefault("total", time.perf_counter() - start)
+            if tmp is not None:
+                Path(tmp).write_text(json.dumps(json_ready(stats), indent=1))
+
+        writers = {exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure)}
+        if stats_path:
+            writers[stats_path] = finish
+        write_files(writers)
+        finish()
     except BaseException:
         bar.close(failed=True)
         raise
     bar.close()
-    seconds["total"] = time.perf_counter() - start
-    stats = {"command": "render", "scene": str(scene_file) if scene_file else None,
-             "quick": {"mesh": str(mesh), "material": material, "size_mm": size_mm, "floor": floor,
-                       "boundary": boundary} if quick else None,
-             "seed": seed, "spp": spp_used, "outputs": {"exr": str(exr), "png": str(png)},
-             "tonemap": {"method": tonemap, "key": key, "exposure": exposure},
-             **integ.stats, "seconds": seconds}
-    if stats_path:
-        write_text(stats_path, json.dumps(json_ready(stats), indent=1))
     click.echo(f"wrote {exr} and {png} ({seconds['total']:.1f} s)")

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import click
 
-from ..files import write_text
+from ..files import check_outputs, write_text
 from .main import cli
 
 
@@ -43,6 +43,8 @@ def scene(mesh, material, size_mm, output, boundary, unit_mm, floor, width, heig
     from ..scene.xmlwriter import object_to_xml, scene_to_xml
 
     mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)
+    if output:
+        check_outputs([output], [mesh_path])
     scene_dict = quick_scene(mesh_path, lookup_material(material), size_mm, width, height, spp, floor, boundary,
                              unit_mm)
     text = object_to_xml("object", scene_dict["object"]) if object_only else scene_to_xml(scene_dict)

@@ -51,6 +51,8 @@ def select(only):
         if name not in FIGURES:
             raise ConvsssError(f"unknown figure {item!r} in --only: choose from {', '.join(FIGURES)}")
         names.append(name)
+    if not names:
+        raise ConvsssError(f"--only {only!r} names no figure: choose from {', '.join(FIGURES)}")
     return [n for n in FIGURES if n in names]
 
 

@@ -1,20 +1,31 @@
 """Loading scenes for rendering: an XML file or a dictionary, with the ``convsss`` integrator registered first and the
-film optionally resized (the camera keeps its field of view; the crop window becomes the whole film).
+film optionally resized (the camera keeps its field of view; the crop window becomes the whole film); and the files
+an XML scene reads (:func:`scene_inputs`), which no output may overwrite.
 
 Scenes load without Mitsuba's optimizations (``optimize=False``): by default Mitsuba merges meshes that share a BSDF
 and a medium into one shape, which would make two separate translucent objects of one material a single object,
 with light diffusing across the air between them.
 """
 
+import re
 from pathlib import Path
+from xml.etree import ElementTree
 
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from .integrator import register
 
+#: ``<string name=...>`` properties that name a file: every plugin's ``filename``, the convsss integrator's ``profile``.
+FILE_PROPERTIES = ("filename", "profile")
 
-def _one_line(error):
-    return " ".join(str(error).split())
+
+def _load_error(error, context):
+    """A one-line ConvsssError for Mitsuba's ``error``: a plugin's own ConvsssError message (Mitsuba wraps it in its
+    text with the flattened traceback) as it is, anything else after ``context``."""
+    wrapped = re.findall(r"ConvsssError: (.+)", str(error))
+    if wrapped:
+        return ConvsssError(wrapped[-1].strip())
+    return ConvsssError(f"{context}: {' '.join(str(error).split())}")
 
 
 def load_scene(source, width=None, height=None):
@@ -28,7 +39,7 @@ def load_scene(source, width=None, height=None):
         try:
             scene = mi.load_dict(source, optimize=False)
         except Exception as error:
-            raise ConvsssError(f"cannot build the scene: {_one_line(error)}") from None
+            raise _load_error(error, "cannot build the scene") from None
     else:
         path = Path(source)
         if not path.is_file():
@@ -36,7 +47,7 @@ def load_scene(source, width=None, height=None):
         try:
             scene = mi.load_file(str(path), optimize=False)
         except Exception as error:
-            raise ConvsssError(f"cannot load scene {str(path)!r}: {_one_line(error)}") from None
+            raise _load_error(error, f"cannot load scene {str(path)!r}") from None
     if not scene.sensors():
         raise ConvsssError("the scene has no sensor (camera) to render from")
     for name, value in (("width", width), ("height", height)):
@@ -46,6 +57,72 @@ def load_scene(source, width=None, height=None):
         for sensor in scene.sensors():
             resize_film(mi, sensor, width, height)
     return scene
+
+
+def scene_inputs(path):
+    """The files a Mitsuba 3 XML scene reads, without loading it.
+
+    The scene file, its ``<include>``s (recursively), and every file named in them: ``<string name="filename">``
+    (meshes, textures, environment maps, ...), the ``convsss`` integrator's ``<string name="profile">`` and any
+    ``filename`` attribute. ``$name`` is replaced by the scene's ``<default>`` values; relative paths are resolved as
+    Mitsuba does: against the file's folder, the scene's folder, ``<path>`` entries and Mitsuba's search path.
+
+    Parameters
+    ----------
+    path : str or Path
+        The scene file.
+
+    Returns
+    -------
+    list of Path
+        The scene file first; a file that exists nowhere is given relative to the scene's folder.
+
+    Raises
+    ------
+    ConvsssError
+        When the scene file or an included file does not exist or is not XML.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ConvsssError(f"scene file {str(path)!r} does not exist")
+    search = [path.parent, *(Path(str(p)) for p in load_mitsuba().file_resolver())]
+    found = [path]
+    _collect_inputs(path, search, {}, found)
+    return found
+
+
+def _collect_inputs(path, search, defaults, found):
+    try:
+        root = ElementTree.parse(path).getroot()
+    except (ElementTree.ParseError, OSError) as error:
+        raise ConvsssError(f"cannot read scene {str(path)!r}: {error}") from None
+
+    def value(element, attribute):
+        return re.sub(r"\$(\w+)", lambda m: defaults.get(m[1], m[0]), element.get(attribute, ""))
+
+    for element in root.iter():
+        if element.tag == "default":
+            defaults.setdefault(element.get("name"), element.get("value", ""))
+        elif element.tag == "path":
+            search.insert(0, _resolve(value(element, "value"), path.parent, search))
+        elif element.tag == "string" and element.get("name") in FILE_PROPERTIES:
+            found.append(_resolve(value(element, "value"), path.parent, search))
+        elif element.get("filename"):
+            found.append(_resolve(value(element, "filename"), path.parent, search))
+            if element.tag == "include":
+                if not found[-1].is_file():
+                    raise ConvsssError(f"scene {str(path)!r} includes {str(found[-1])!r}, which does not exist")
+                _collect_inputs(found[-1], search, defaults, found)
+
+
+def _resolve(name, folder, search):
+    """``name`` as Mitsuba's file resolver finds it: absolute, or the first existing of ``folder / name`` and
+    ``s / name`` for the search path ``s`` (``folder / name`` when none exists)."""
+    name = Path(name).expanduser()
+    if name.is_absolute():
+        return name
+    candidates = [folder / name, *(base / name for base in search)]
+    return next((c for c in candidates if c.exists()), candidates[0])
 
 
 def resize_film(mi, sensor, width=None, height=None):

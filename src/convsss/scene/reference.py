@@ -37,7 +37,8 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
     pass_spp : int
         Samples per pixel of each pass (the last one may have fewer).
     seed : int
-        Pass ``k`` uses the seed ``seed * 1_000_003 + k``: the same seed gives the same image.
+        Pass ``k`` uses the seed ``(seed * 1_000_003 + k) mod 2^32`` (Mitsuba's seeds are 32-bit): the same seed
+        gives the same image.
     on_pass : callable, optional
         ``on_pass(mean_image, spp_done, pass_index, n_passes)`` after each pass (e.g. to save it).
     """
@@ -50,7 +51,7 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
     total, done = None, 0
     for k in range(n_passes):
         this = min(pass_spp, spp - done)
-        image = np.array(mi.render(scene, integrator=integrator, spp=this, seed=seed * 1_000_003 + k),
+        image = np.array(mi.render(scene, integrator=integrator, spp=this, seed=(seed * 1_000_003 + k) % 2**32),
                          dtype=np.float64)[..., :3]
         total = image * this if total is None else total + image * this
         done += this
