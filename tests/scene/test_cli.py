@@ -291,3 +291,27 @@ def test_ctrl_c_ends_reference_in_one_line_without_outputs(scene_file, tmp_path)
     assert code == 130, stderr
     assert "Traceback" not in stderr and stderr.rstrip().endswith("interrupted")
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]
+
+
+@pytest.mark.parametrize("stage", ["transport", "shading"])
+def test_ctrl_c_ends_render_in_one_line_without_outputs(tmp_path, stage):
+    """SIGINT once the progress bar shows ``stage``: exit code 130 within seconds, `interrupted`, no file written."""
+    out = tmp_path / "out" / "img"
+    proc = subprocess.Popen([sys.executable, "-m", "convsss", "render", "--mesh", "bunny", "--material", "wholemilk",
+                             "--size-mm", "40", "--width", "96", "--height", "96", "--spp", "256", "-o", str(out),
+                             "--transport", "exact"],
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": _src_path()})
+    started = ""
+    while stage not in started:
+        char = proc.stderr.read(1)
+        assert char, f"render ended before {stage}: {started}"
+        started += char
+    proc.send_signal(signal.SIGINT)
+    try:
+        code = proc.wait(timeout=60)
+    finally:
+        proc.kill()
+    stderr = started + proc.stderr.read()
+    assert code == 130, stderr
+    assert "Traceback" not in stderr and stderr.rstrip().endswith("interrupted")
+    assert not [p for p in tmp_path.rglob("*") if p.is_file()]
