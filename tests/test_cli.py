@@ -111,9 +111,9 @@ def images(tmp_path, monkeypatch):
     (("compare", "a.exr", "b.png", "--mask", "mask.png", "-o", "mask.png"), "is an input of this command"),
     (("compare", "a.exr", "b.png", "-o", "/proc/x/error.png"), "cannot write into '/proc/x'"),
     (("compare", "a.exr", "b.png", "-o", "a.exr/error.png"), "not a folder"),
-    (("figures", "--only", ",", "--out", "figs"), "--only ',' names no figure"),
-    (("figures", "--out", "/proc/x"), "cannot write into '/proc/x'"),
-    (("figures", "--out", "a.exr"), "Invalid value for '--out'"),
+    (("figures", "--only", ",", "--output", "figs"), "--only ',' names no figure"),
+    (("figures", "--output", "/proc/x"), "cannot write into '/proc/x'"),
+    (("figures", "--output", "a.exr"), "Invalid value for '-o' / '--output'"),
 ])
 def test_bad_outputs_fail_in_one_line_and_write_nothing(images, args, message):
     before = _snapshot(images)

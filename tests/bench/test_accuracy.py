@@ -102,10 +102,10 @@ def test_headline_ratio_with_and_without_overlap():
 
 
 def test_bench_accuracy_quick_end_to_end(tmp_path):
-    result = CliRunner().invoke(cli, ["bench", "accuracy", "--quick", "--resolution", "48", "--runs", "1", "--json",
-                                      "--out", str(tmp_path)])
+    result = CliRunner().invoke(cli, ["bench", "accuracy", "--quick", "--width", "48", "--runs", "1", "--json",
+                                      "--output", str(tmp_path)])
     assert result.exit_code == 0, result.output
-    out = json.loads(result.output)
+    out = json.loads(result.stdout)
     assert set(out) == {"meta", "rows", "headline"}
     assert set(out["meta"]["scenes"]) == {"null", "dielectric"}
     assert out["meta"]["scenes"]["dielectric"]["eta"] > 1 and out["meta"]["scenes"]["null"]["eta"] == 1

@@ -9,7 +9,7 @@ from convsss.cli import cli
 def test_bench_transport_quick_json_has_its_keys():
     result = CliRunner().invoke(cli, ["bench", "transport", "--quick", "--runs", "1", "--json"])
     assert result.exit_code == 0, result.output
-    rows = json.loads(result.output)
+    rows = json.loads(result.stdout)
     assert len(rows) == 1
     row = rows[0]
     assert {"grid", "layers", "threshold", "stage_median_s", "fft_floor_s", "ratio"} <= set(row)

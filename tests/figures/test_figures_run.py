@@ -22,7 +22,7 @@ def run(*args):
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("figures")
-    result = run("figures", "--quick", "--out", out, "--no-progress")
+    result = run("figures", "--quick", "--output", out, "--no-progress")
     assert result.exit_code == 0, result.output
     return out, json.loads((out / "figures.json").read_text())
 
@@ -76,7 +76,7 @@ def test_fig2_counts_fewer_convolutions_for_the_larger_bunny_and_the_larger_thre
 
 def test_second_run_reuses_the_cached_references(quick_run):
     out, _ = quick_run
-    result = run("figures", "--quick", "--only", "fig5", "--out", out, "--no-progress")
+    result = run("figures", "--quick", "--only", "fig5", "--output", out, "--no-progress")
     assert result.exit_code == 0, result.output
     data = json.loads((out / "figures.json").read_text())
     assert data["cache"] == {"hits": 2, "misses": 0, "root": "cache"}

@@ -5,6 +5,7 @@ import json
 import click
 
 from .main import cli
+from .options import PROGRESS
 
 
 @cli.group()
@@ -20,7 +21,8 @@ def bench():
 @click.option("--json", "as_json", is_flag=True,
               help="Print the rows as a JSON list with the keys grid, layers, threshold, stage_median_s, fft_floor_s, "
                    "ratio (and fft_shape, pairs_per_layer, samples).")
-def bench_transport_command(quick, runs, as_json):
+@PROGRESS
+def bench_transport_command(quick, runs, as_json, progress):
     """Layered convolution transport per stage against the bare FFT floor.
 
     Grids of 256², 512² and 1024² cells across a lit wholemilk sphere, 4 / 8 / 16 layers, thresholds 0 and 0.1 %.
@@ -31,9 +33,9 @@ def bench_transport_command(quick, runs, as_json):
 
     if quick:
         rows = bench_transport(grids=(512,), layer_counts=(8,), thresholds=(0.001,), runs=runs or 3,
-                               progress=not as_json)
+                               progress=progress)
     else:
-        rows = bench_transport(runs=runs or 5, progress=not as_json)
+        rows = bench_transport(runs=runs or 5, progress=progress)
     click.echo(json.dumps(rows, indent=1) if as_json else transport_table(rows))
 
 
@@ -43,24 +45,25 @@ def bench_transport_command(quick, runs, as_json):
                    "with the plane correction, epsilon 0.01, 0.1, 1, 5 (well under a minute).")
 @click.option("--runs", type=click.IntRange(1), default=3, show_default=True,
               help="Timed runs per configuration (the median is reported).")
-@click.option("--resolution", type=click.IntRange(16, 4096), default=None,
-              help="Image side in pixels: the visible points are its pixel centres on the object. [default: 256; 96 "
-                   "with --quick]")
-@click.option("--size", "size_mm", type=click.FloatRange(0, min_open=True), default=40.0, show_default=True,
+@click.option("--width", type=click.IntRange(16, 4096), default=None,
+              help="Image width and height in pixels (square): the visible points are its pixel centres on the "
+                   "object. [default: 256; 96 with --quick]")
+@click.option("--size-mm", "size_mm", type=click.FloatRange(0, min_open=True), default=40.0, show_default=True,
               help="The bunny's largest side in mm.")
 @click.option("--material", default="wholemilk", show_default=True, help="A preset name (see `convsss materials`).")
-@click.option("--scene", "scenes", type=click.Choice(["null", "dielectric", "both"]), default="both",
+@click.option("--boundary", "scenes", type=click.Choice(["null", "dielectric", "both"]), default="both",
               show_default=True,
               help="null: index-matched boundary, two point lights; dielectric: smooth dielectric, area light and a "
                    "dim environment.")
 @click.option("--sample-density", type=click.FloatRange(0, min_open=True), default=4.0, show_default=True,
               help="Surface samples per full-resolution pixel footprint (as the integrator's sample_density).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False),
+@click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False),
               help="Write accuracy.png (Pareto plot), accuracy.json (rows, facts, headline) and accuracy.txt (table) "
                    "into this folder.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print {meta, rows, headline} as JSON instead of the table.")
-def bench_accuracy_command(quick, runs, resolution, size_mm, material, scenes, sample_density, out_dir, as_json):
+@PROGRESS
+def bench_accuracy_command(quick, runs, width, size_mm, material, scenes, sample_density, out_dir, as_json, progress):
     """Error against the exact sum versus wall time: convolution and hierarchical transports on a bunny.
 
     Both transports get the same irradiance samples (prepared as a render does) and are queried at the same visible
@@ -81,12 +84,12 @@ def bench_accuracy_command(quick, runs, resolution, size_mm, material, scenes, s
     check_outputs(outputs.values())
     chosen = ("null", "dielectric") if scenes == "both" else (scenes,)
     options = dict(scenes=chosen, size_mm=size_mm, material=material, runs=runs, sample_density=sample_density,
-                   progress=not as_json)
+                   progress=progress)
     if quick:
-        result = bench_accuracy(resolution=resolution or 96, layer_counts=(2, 8), downsamples=(1.0, 0.5),
+        result = bench_accuracy(resolution=width or 96, layer_counts=(2, 8), downsamples=(1.0, 0.5),
                                 thresholds=(0.001,), epsilons=(0.01, 0.1, 1.0, 5.0), **options)
     else:
-        result = bench_accuracy(resolution=resolution or 256, **options)
+        result = bench_accuracy(resolution=width or 256, **options)
     result = json_ready(result)
     text = report_text(result)
     if outputs:

@@ -7,16 +7,17 @@ import click
 
 from ..files import check_outputs
 from .main import cli
+from .options import PROGRESS
 
 
 @cli.command()
 @click.option("--quick", is_flag=True,
               help="Everything small: 128x128 panels at 2 spp, short path-traced references (a few minutes).")
 @click.option("--only", metavar="FIGS", help="Comma-separated figures to render, e.g. fig2,fig5 (or 2,5).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/figures", show_default=True,
+@click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False), default="out/figures", show_default=True,
               help="Output folder: one sub-folder per figure, report.md, figures.json; references cached in "
                    "OUT/cache and reused by the next run.")
-@click.option("--progress/--no-progress", default=True, show_default=True, help="Show progress bars on stderr.")
+@PROGRESS
 def figures(quick, only, out_dir, progress):
     """Regenerate the paper's figures: per figure a contact sheet PNG (captions: parameters, seconds,
     convolutions per layer c, errors against the exact sum and volpathmis), the panels' EXRs, and one report.md.
@@ -33,7 +34,7 @@ def figures(quick, only, out_dir, progress):
 
     \b
     Examples:
-      convsss figures --quick --out out/figures-quick
+      convsss figures --quick -o out/figures-quick
       convsss figures --only fig2,fig5
     """
     from ..figures import FULL, QUICK, render_figures

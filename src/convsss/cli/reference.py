@@ -9,7 +9,7 @@ import click
 from ..errors import ConvsssError
 from ..files import check_outputs, write_files
 from .main import cli
-from .render import load_source, output_stem, scene_source_options, source_inputs, tonemap_options
+from .options import PROGRESS, load_source, output_stem, scene_source_options, source_inputs, tonemap_options
 
 
 @cli.command()
@@ -20,7 +20,7 @@ from .render import load_source, output_stem, scene_source_options, source_input
 @click.option("--pass-spp", type=int, default=16, show_default=True,
               help="Samples per pixel of each pass; the image so far is saved after each pass.")
 @tonemap_options
-@click.option("--progress/--no-progress", default=True, show_default=True, help="Show a progress bar on stderr.")
+@PROGRESS
 def reference(scene_file, mesh, material, size_mm, floor, boundary, width, height, spp, seed, output, pass_spp,
               tonemap, key, exposure, progress):
     """Render SCENE_FILE with Mitsuba's volumetric path tracer volpathmis: the ground truth of `convsss render`.

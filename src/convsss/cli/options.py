@@ -1,0 +1,165 @@
+"""Options shared by the commands, in one vocabulary: what to render (a scene file, or ``--mesh/--material/--size-mm``
+with ``--width/--height``), ``--seed``, the tone mapping of PNGs, and one option per integrator parameter, generated
+from the parameters' declarations (:mod:`convsss.parameters`) so that help, defaults and checks are stated once.
+"""
+
+import warnings
+from pathlib import Path
+
+import click
+
+from ..errors import ConvsssError
+from ..image import TONEMAPS, check_tonemap
+
+#: ``--progress/--no-progress``: every command that takes more than a moment shows a bar on stderr.
+PROGRESS = click.option("--progress/--no-progress", default=True, show_default=True,
+                        help="Show a progress bar on stderr.")
+
+#: Random seeds: Mitsuba's are unsigned 32-bit integers.
+SEED = click.IntRange(0, 2**32 - 1)
+
+
+def output_stem(output):
+    """``OUT`` from ``OUT``, ``OUT.exr`` or ``OUT.png``: the stem both images share."""
+    path = Path(output)
+    return path.with_suffix("") if path.suffix.lower() in (".exr", ".png") else path
+
+
+def scene_source_options(func):
+    """The options that say what to render: a scene file, or ``--mesh/--material/--size-mm`` (shared by commands)."""
+    options = [
+        click.argument("scene_file", required=False, type=click.Path(dir_okay=False)),
+        click.option("--mesh", type=click.Path(dir_okay=False),
+                     help="Without a scene file: a mesh (.obj, .ply, .serialized, y up) framed with a camera, a key "
+                          "light and a back light. 'bunny' is the bundled Stanford bunny."),
+        click.option("--material", help="With --mesh: a preset name (see `convsss materials`), e.g. wholemilk."),
+        click.option("--size-mm", type=float, help="With --mesh: the object's largest side in mm."),
+        click.option("--floor", is_flag=True, help="With --mesh: add a grey floor under the object."),
+        click.option("--boundary", type=click.Choice(["dielectric", "roughdielectric", "null"]), default="dielectric",
+                     show_default=True,
+                     help="With --mesh: the object's surface: a smooth or rough dielectric with the material's index "
+                          "of refraction, or index-matched (null)."),
+        click.option("--width", type=int, help="Film width in pixels (default: the scene's; 800 with --mesh)."),
+        click.option("--height", type=int, help="Film height in pixels (default: the scene's; 800 with --mesh)."),
+        click.option("--spp", type=int, help="Samples per pixel (default: the scene's sampler; 16 with --mesh)."),
+        click.option("--seed", type=SEED, default=0, show_default=True,
+                     help="Random seed, 0 to 2^32 - 1: the same seed gives the same image."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def source_inputs(scene_file, mesh):
+    """The files the scene-source options read: the scene file and every file it names, or the mesh."""
+    from ..scene.loading import scene_inputs
+    from ..scene.quick import demo_mesh
+
+    inputs = scene_inputs(scene_file) if scene_file else []
+    if mesh:
+        inputs.append(demo_mesh() if mesh == "bunny" else Path(mesh))
+    return inputs
+
+
+def _check_tonemap_option(ctx, param, value):
+    check_tonemap(**{param.name: value})
+    return value
+
+
+def tonemap_options(func):
+    """``--tonemap``, ``--key`` and ``--exposure`` for the PNG (shared by commands); bad values fail at once."""
+    options = [
+        click.option("--tonemap", type=click.Choice(TONEMAPS), default="reinhard", show_default=True,
+                     help="PNG tone mapping: Reinhard's photographic operator, exposure only, or none (clipped)."),
+        click.option("--key", type=float, default=0.18, show_default=True, callback=_check_tonemap_option,
+                     help="Key value of the Reinhard operator (> 0)."),
+        click.option("--exposure", type=float, default=0.0, show_default=True, callback=_check_tonemap_option,
+                     help="Exposure in stops, applied before tone mapping."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height):
+    """The loaded scene for the scene-source options; one-line errors for bad combinations."""
+    from ..materials import OpticallyThinWarning
+    from ..materials import material as lookup_material
+    from ..scene.loading import load_scene
+
+    if scene_file and (mesh or material or size_mm is not None):
+        raise ConvsssError("give a scene file or --mesh/--material/--size-mm, not both")
+    if scene_file:
+        return load_scene(scene_file, width, height)
+    if not (mesh and material and size_mm is not None):
+        raise ConvsssError("nothing to render: give a scene file, or all of --mesh, --material and --size-mm")
+    from ..scene.quick import demo_mesh, quick_scene
+
+    mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)
+    with warnings.catch_warnings():  # the scene's object says it once, by its own name
+        warnings.simplefilter("ignore", OpticallyThinWarning)
+        preset = lookup_material(material)
+    scene = quick_scene(mesh_path, preset, size_mm, width or 800, height or 800, floor=floor,
+                        boundary=boundary)
+    return load_scene(scene)
+
+
+class DeclaredType(click.ParamType):
+    """A click type that converts and checks a value by its :class:`~convsss.parameters.Parameter` declaration."""
+
+    def __init__(self, parameter):
+        self.parameter = parameter
+        self.name = parameter.kind.__name__
+
+    def convert(self, value, param, ctx):
+        try:
+            return self.parameter.check(value if self.parameter.kind is str else _number(value))
+        except ConvsssError as error:
+            self.fail(str(error), param, ctx)
+
+
+def _number(text):
+    """``text`` as an int when it is one, else a float (the declaration decides what is allowed)."""
+    try:
+        return int(text)
+    except (TypeError, ValueError):
+        try:
+            return float(text)
+        except (TypeError, ValueError):
+            return text
+
+
+def integrator_parameters():
+    """Every integrator parameter a user sets: the renderer's, then each transport's exposed ones (declared once)."""
+    from ..scene.params import render_parameters, transport_parameters
+
+    return [*render_parameters(), *[p for p in transport_parameters().values()]]
+
+
+def integrator_options(func):
+    """One option per integrator parameter, from its declaration; unset ones keep the scene's (or the default)."""
+    from ..transport import TRANSPORTS
+
+    owners = {}
+    for kind in sorted(TRANSPORTS):
+        for p in TRANSPORTS[kind].parameters:
+            owners.setdefault(p.name, kind)
+    for p in reversed(integrator_parameters()):
+        where = f" ({owners[p.name]} transport)" if p.name in owners else ""
+        shown = "none" if p.default in ("", None) else p.default
+        allowed = "" if p.kind is str else f" Allowed: {p.allowed()}."
+        help_text = f"{p.help}{where}{allowed} [default: {shown}]"
+        kind = click.Choice(p.choices) if p.kind is str and p.choices else DeclaredType(p)
+        func = click.option(f"--{p.name.replace('_', '-')}", p.name, type=kind, help=help_text)(func)
+    return func
+
+
+def render_params(options, base=None):
+    """:class:`RenderParams` from the command's options (only those given) over ``base`` (a dict)."""
+    from ..scene.params import RenderParams
+
+    values = dict(base or {})
+    values.update({name: value for name, value in options.items() if value is not None})
+    return RenderParams(**values)
+
+
