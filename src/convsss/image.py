@@ -67,17 +67,34 @@ def tonemap(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
         return np.clip(rgb, 0.0, 1.0)
     if method == "exposure":
         return np.clip(rgb * 2.0 ** float(exposure), 0.0, 1.0)
-    lum = luminance(rgb) * 2.0 ** float(exposure)
-    region = lum[mask] if mask is not None and np.any(mask) else lum[lum > 0]
-    if region.size == 0:
-        return np.zeros_like(rgb)
-    log_average = np.exp(np.mean(np.log(1e-6 + region)))
-    scaled = key / log_average * lum
-    white2 = max(float(np.max(scaled)), 1e-12) ** 2
-    display = scaled * (1.0 + scaled / white2) / (1.0 + scaled)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(lum > 0, display / lum, 0.0) * 2.0 ** float(exposure)
-    return np.clip(rgb * ratio[..., None], 0.0, 1.0)
+    exposed = rgb * 2.0 ** float(exposure)
+    return Reinhard(exposed, key, mask)(exposed)
+
+
+class Reinhard:
+    """Reinhard et al. 2002's photographic operator with its scale and white point fixed by an ``anchor`` image.
+
+    Scale ``key / L_w`` with the log-average luminance ``L_w = exp(mean(log(1e-6 + L)))`` over ``mask`` (default: the
+    anchor's non-black pixels), white point ``L_white`` = the largest scaled luminance; then
+    ``L_d = L (1 + L / L_white^2) / (1 + L)`` with colours keeping their ratios. One operator applied to several
+    images exposes them alike.
+    """
+
+    def __init__(self, anchor, key=0.18, mask=None):
+        lum = luminance(np.maximum(np.nan_to_num(np.asarray(anchor, dtype=np.float64)[..., :3]), 0.0))
+        region = lum[mask] if mask is not None and np.any(mask) else lum[lum > 0]
+        self.scale = key / float(np.exp(np.mean(np.log(1e-6 + region)))) if region.size else key
+        self.white = max(float(np.max(lum, initial=0.0)) * self.scale, 1e-12)
+
+    def __call__(self, rgb):
+        """Linear RGB (H, W, 3) to display values in [0, 1] (before sRGB encoding)."""
+        rgb = np.maximum(np.nan_to_num(np.asarray(rgb, dtype=np.float64)[..., :3]), 0.0)
+        lum = luminance(rgb)
+        scaled = self.scale * lum
+        display = scaled * (1.0 + scaled / self.white**2) / (1.0 + scaled)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.where(lum > 0, display / lum, 0.0)
+        return np.clip(rgb * ratio[..., None], 0.0, 1.0)
 
 
 def srgb_encode(display):
@@ -94,6 +111,12 @@ def _bitmap(array):
     return mi, mi.Bitmap(np.ascontiguousarray(array))
 
 
+def display_png_writer(pixels):
+    """``write(path)``, saving sRGB uint8 pixels (H, W, 3) as a PNG: one entry of :func:`convsss.files.write_files`."""
+    mi, bitmap = _bitmap(np.asarray(pixels, dtype=np.uint8))
+    return lambda path: bitmap.write(path, mi.Bitmap.FileFormat.PNG)
+
+
 def exr_writer(rgb):
     """``write(path)``, saving linear RGB (H, W, 3) as a float32 OpenEXR file: one entry of
     :func:`convsss.files.write_files`, which writes several files together."""
@@ -107,8 +130,7 @@ def exr_writer(rgb):
 def png_writer(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
     """``write(path)``, saving linear RGB (H, W, 3) tone-mapped (:func:`tonemap`) as an 8-bit sRGB PNG: one entry of
     :func:`convsss.files.write_files`."""
-    mi, bitmap = _bitmap(srgb_encode(tonemap(rgb, method, key, exposure, mask)))
-    return lambda path: bitmap.write(path, mi.Bitmap.FileFormat.PNG)
+    return display_png_writer(srgb_encode(tonemap(rgb, method, key, exposure, mask)))
 
 
 def write_exr(path, rgb):

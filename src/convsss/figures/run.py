@@ -228,7 +228,6 @@ class Runner:
 def _write_display(path, display):
     """Write an sRGB uint8 image as PNG, atomically."""
     from ..files import atomic_write
-    from ..image import _bitmap
+    from ..image import display_png_writer
 
-    mi, bitmap = _bitmap(np.ascontiguousarray(display))
-    return atomic_write(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.PNG))
+    return atomic_write(path, display_png_writer(display))

@@ -7,34 +7,11 @@ exact-sum reference of the group's scene), so a panel that is darker than the re
 
 import textwrap
 
-import numpy as np
-
-from ..image import luminance, srgb_encode
+from ..image import Reinhard, srgb_encode
 
 KEY = 0.18
 PANEL_INCHES = 2.4
 CAPTION_LINE_INCHES = 0.15
-
-
-class GroupTonemap:
-    """Reinhard's operator with its scale and white point fixed by an anchor image (linear RGB)."""
-
-    def __init__(self, anchor, key=KEY):
-        lum = luminance(np.maximum(np.nan_to_num(anchor), 0.0))
-        region = lum[lum > 0]
-        log_average = float(np.exp(np.mean(np.log(1e-6 + region)))) if region.size else 1.0
-        self.scale = key / log_average
-        self.white = max(float(np.max(lum)) * self.scale if region.size else 1.0, 1e-12)
-
-    def __call__(self, rgb):
-        """Linear RGB (H, W, 3) -> sRGB uint8 (H, W, 3)."""
-        rgb = np.maximum(np.nan_to_num(np.asarray(rgb, dtype=np.float64)), 0.0)
-        lum = luminance(rgb)
-        scaled = self.scale * lum
-        display = scaled * (1.0 + scaled / self.white**2) / (1.0 + scaled)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = np.where(lum > 0, display / lum, 0.0)
-        return srgb_encode(np.clip(rgb * ratio[..., None], 0.0, 1.0))
 
 
 def tonemap_groups(images, groups, anchors=None):
@@ -44,8 +21,8 @@ def tonemap_groups(images, groups, anchors=None):
     out = []
     for image, group in zip(images, groups):
         if group not in operators:
-            operators[group] = GroupTonemap(anchors.get(group, image))
-        out.append(operators[group](image))
+            operators[group] = Reinhard(anchors.get(group, image), KEY)
+        out.append(srgb_encode(operators[group](image)))
     return out
 
 
