@@ -96,19 +96,24 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0):
     import drjit as dr
 
     from ..backend import load_mitsuba
-    from ..scene.camera import sensor_frame
+    from ..scene.camera import pixel_footprint, sensor_frame
+    from ..scene.irradiance import object_samples, sample_count
     from ..scene.loading import load_scene
+    from ..scene.objects import find_translucent_objects
     from ..scene.params import RenderParams
 
     mi = load_mitsuba()
     start = time.perf_counter()
     scene = load_scene(scene_dict)
-    params = RenderParams(transport="exact", downsample=1.0, sample_density=sample_density)
-    integrator = mi.load_dict(params.integrator_dict())
+    params = RenderParams(transport="exact", sample_density=sample_density)
     sensor = scene.sensors()[0]
-    shader = integrator.prepare(scene, sensor, seed)
-    obj, samples = shader.objects[0], shader.transports[0].samples
-    summary = integrator.stats["objects"][0]
+    frame = sensor_frame(sensor, params.unit_mm)
+    obj = find_translucent_objects(mi, scene, params.unit_mm)[0]
+    depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
+    cell = pixel_footprint(sensor, frame, depth, params.unit_mm)
+    samples = object_samples(scene, obj, sample_count(obj.area_mm2, cell, sample_density), params.irradiance_samples,
+                             params.unit_mm, seed)
+    summary = {**obj.summary(), "samples": len(samples), "pixel_footprint_mm": cell, "view_depth_mm": depth}
 
     width, height = (int(x) for x in sensor.film().crop_size())
     y, x = np.mgrid[0:height, 0:width]
@@ -121,7 +126,7 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0):
     normals = dr.ravel(mi.Vector3f(si.n)).numpy().reshape(-1, 3)[on_object].astype(np.float64) * obj.orientation
     return {"samples": samples, "points": np.ascontiguousarray(points), "normals": np.ascontiguousarray(normals),
             "profile": obj.profile,
-            "frame": sensor_frame(sensor, params.unit_mm), "cell_size": summary["pixel_footprint_mm"],
+            "frame": frame, "cell_size": cell,
             "object": summary, "image": [width, height], "prepare_s": time.perf_counter() - start}
 
 

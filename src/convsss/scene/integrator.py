@@ -13,7 +13,6 @@
 Per-stage seconds and everything a user needs to judge the run are in :attr:`ConvsssIntegrator.stats`.
 """
 
-import math
 import warnings
 
 import drjit as dr
@@ -21,12 +20,11 @@ import numpy as np
 
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
-from ..samples import IrradianceSamples
+from ..memory import check_memory
 from ..timing import StageTimer
 from ..transport import make_transport
-from ..transport.convolution import available_memory
 from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
-from .irradiance import sample_surface, surface_irradiance
+from .irradiance import object_samples, sample_count
 from .objects import find_translucent_objects
 from .params import RenderParams
 from .shading import Shader
@@ -107,30 +105,18 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             depth = depth if depth > 0 else float(np.median(depths))
             cell_full = pixel_footprint(sensor, frame, depth, p.unit_mm)
             cell = cell_full / p.transport_params().get("downsample", 1.0)
-            count = max(64, math.ceil(p.sample_density * obj.area_mm2 / cell**2))
-            self._check_memory(count * BYTES_PER_SAMPLE, f"{count} surface samples of {obj.name!r}",
+            count = sample_count(obj.area_mm2, cell, p.sample_density)
+            check_memory(count * BYTES_PER_SAMPLE, f"{count} surface samples of {obj.name!r}",
                                "lower sample_density, or use downsample 0.5 or 0.25")
             self._check_irradiance_time(scene, count, obj.name)
-            self._stage("samples")
-            with timer("samples"):
-                position, normal, area = sample_surface(obj.shape, count, _seed(seed), obj.orientation, stream=k,
-                                                        to_world=obj.to_world)
-                area_mm2 = area.numpy().astype(np.float64) * p.unit_mm**2
-                n = len(area_mm2)
-                position_mm = np.ascontiguousarray(dr.ravel(position).numpy().reshape(-1, 3), dtype=np.float64)
-                position_mm *= p.unit_mm
-                normal_np = dr.ravel(normal).numpy().reshape(-1, 3).astype(np.float64)
-            self._stage("irradiance")
-            with timer("irradiance"):
-                irradiance = surface_irradiance(scene, position, normal, obj.eta, p.irradiance_samples,
-                                                _seed(seed) + 7919 * k)
-                samples = IrradianceSamples(position_mm, area_mm2, irradiance, normal_np)
+            samples = object_samples(scene, obj, count, p.irradiance_samples, p.unit_mm, _seed(seed), stream=k,
+                                     stage=lambda name: (self._stage(name), timer(name))[1])
             self._stage("transport")
             with timer("transport"):
                 transport = make_transport(p.transport, samples, obj.profile, frame=frame,
                                            **self._transport_params(cell_full))
             transports.append(transport)
-            per_object.append({**obj.summary(), "samples": n, "cell_size_mm": cell,
+            per_object.append({**obj.summary(), "samples": len(samples), "cell_size_mm": cell,
                                "pixel_footprint_mm": cell_full, "view_depth_mm": depth,
                                "flux": samples.flux.sum(axis=0).tolist()})
         self._shader = Shader(scene, shown, transports, p, stop=self.should_stop)
@@ -156,13 +142,6 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                                f"{rays / RAYS_PER_SECOND / 60:.0f} min at {RAYS_PER_SECOND:.0e} rays/s: lower "
                                "irradiance_samples (16-64 is plenty) or sample_density")
 
-    @staticmethod
-    def _check_memory(needed, what, advice):
-        available = available_memory()
-        if available is not None and needed > 0.75 * available:
-            raise ConvsssError(f"{what} need about {needed / 2**30:.1f} GiB, more than the "
-                               f"{0.75 * available / 2**30:.1f} GiB available: {advice}")
-
     # --- Mitsuba's interface ------------------------------------------------------------------------------------------
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
         if self._nested:  # Mitsuba's own loop, called from below: let it run
@@ -173,7 +152,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         size = film.crop_size()
         spp_used = spp if spp else sensor.sampler().sample_count()
         per_pass = min(spp_used, self.samples_per_pass) if self.samples_per_pass > 0 else spp_used
-        self._check_memory(int(size[0]) * int(size[1]) * per_pass * BYTES_PER_PATH,
+        check_memory(int(size[0]) * int(size[1]) * per_pass * BYTES_PER_PATH,
                            f"{size[0]}x{size[1]} pixels at {per_pass} samples per pass",
                            "set the integrator's samples_per_pass (e.g. 4) or render fewer spp")
         self.prepare(scene, sensor, seed)

@@ -184,3 +184,47 @@ def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed):
             out[start:stop] += per_point
         out[start:stop] += dr.ravel(e).numpy().reshape(-1, 3)
     return np.maximum(np.nan_to_num(out), 0.0)
+
+
+def sample_count(area_mm2, cell_mm, sample_density):
+    """Surface samples for an object of ``area_mm2``: ``sample_density`` per layer cell of ``cell_mm`` (at least 64)."""
+    return max(64, math.ceil(sample_density * area_mm2 / cell_mm**2))
+
+
+def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=0, stage=None):
+    """Scene -> samples, the data flow's first arrow: about ``count`` stratified points over the whole surface of the
+    translucent object ``obj``, with their area, outward normal and irradiance (paper Eq. 2), in mm.
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+    obj : TranslucentObject
+    count : int
+        Points asked for (a square number at least this large is drawn).
+    irradiance_samples : int
+        Direction samples per point for area and environment emitters.
+    unit_mm : float
+        mm per scene unit.
+    seed, stream : int
+        The same seed and stream give the same samples.
+    stage : callable, optional
+        ``stage(name)`` returns a context manager timing the stage ``samples``, then ``irradiance``.
+
+    Returns
+    -------
+    IrradianceSamples
+    """
+    from contextlib import nullcontext
+
+    from ..samples import IrradianceSamples
+
+    stage = stage or (lambda name: nullcontext())
+    with stage("samples"):
+        position, normal, area = sample_surface(obj.shape, count, seed, obj.orientation, stream=stream,
+                                                to_world=obj.to_world)
+        area_mm2 = area.numpy().astype(np.float64) * unit_mm**2
+        position_mm = dr.ravel(position).numpy().reshape(-1, 3).astype(np.float64) * unit_mm
+        normal_np = dr.ravel(normal).numpy().reshape(-1, 3).astype(np.float64)
+    with stage("irradiance"):
+        irradiance = surface_irradiance(scene, position, normal, obj.eta, irradiance_samples, seed + 7919 * stream)
+        return IrradianceSamples(position_mm, area_mm2, irradiance, normal_np)

@@ -23,6 +23,7 @@ import numpy as np
 import scipy.fft
 
 from ..errors import ConvsssError
+from ..memory import check_memory
 from ..parameters import Parameter
 from ..samples import ViewFrame
 from .base import Transport, register_transport
@@ -35,18 +36,6 @@ DOWNSAMPLES = (1.0, 0.5, 0.25)
 #: Mixing costs layers^2 per frequency; the paper uses 2-16 layers, and 256 is already far past any gain.
 MAX_LAYERS = 256
 DEFAULT_RESOLUTION = 512
-
-
-def available_memory():
-    """Bytes of memory available now (``MemAvailable``), or None where that cannot be read."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return None
 
 
 @numba.njit(cache=True)
@@ -225,11 +214,8 @@ class ConvolutionTransport(Transport):
         if self.correction == "plane" and self.n_layers > 1 and samples.normal is None:
             raise ConvsssError("the plane correction needs the samples' normals (or correction='none')")
         self.memory_bytes = self._memory_estimate()
-        limit = p["memory_limit"] if p["memory_limit"] is not None else 0.75 * (available_memory() or np.inf)
-        if self.memory_bytes > limit:
-            raise ConvsssError(f"the convolution grid {self.grid_shape} x {self.n_layers} layers (FFT "
-                               f"{self.padded_shape}) needs about {self.memory_bytes / 2**30:.1f} GiB, more than the "
-                               f"{limit / 2**30:.1f} GiB allowed: use fewer layers, a lower resolution or downsample")
+        check_memory(self.memory_bytes, f"the convolution grid {self.grid_shape} x {self.n_layers} layers (FFT "
+                     f"{self.padded_shape})", "use fewer layers, a lower resolution or downsample", p["memory_limit"])
         with self.timings("splat"):
             grid = np.zeros((self.n_layers, 3) + self.padded_shape, dtype=np.float32)
             deposited = _splat(self._view, np.ascontiguousarray(samples.flux), self.x0, self.y0, self.cell, self.z0,
