@@ -32,3 +32,12 @@ def test_from_mapping_takes_only_known_names():
 def test_bad_values_say_what_is_allowed(kwargs, message):
     with pytest.raises(ConvsssError, match=message):
         RenderParams(**kwargs)
+
+
+def test_integrator_documents_every_parameter_from_its_declaration():
+    from convsss.scene.integrator import ConvsssIntegrator
+
+    doc = ConvsssIntegrator.__doc__
+    for name in RenderParams.names():
+        assert f" * - {name}\n" in doc, name
+    assert "(Default: 8)" in doc and "(Default: 0.05)" in doc

@@ -26,7 +26,7 @@ from ..transport import make_transport
 from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
 from .irradiance import object_samples, sample_count
 from .objects import find_translucent_objects
-from .params import RenderParams
+from .params import RenderParams, plugin_parameters
 from .shading import Shader
 
 mi = load_mitsuba()
@@ -52,8 +52,15 @@ def _seed(seed):
 class ConvsssIntegrator(mi.SamplingIntegrator):
     """Convolution-based subsurface scattering (Munoz et al. 2011) as a Mitsuba 3 integrator; see the module doc.
 
-    Parameters (Mitsuba properties) are those of :class:`~convsss.scene.params.RenderParams`, plus Mitsuba's own
-    ``samples_per_pass``.
+    ``<integrator type="convsss">`` (call :func:`register` first). Parameters, besides Mitsuba's own
+    ``samples_per_pass`` (the table is generated from the declarations, :mod:`convsss.parameters`):
+
+    {table}
+
+    After a render, :attr:`stats` holds per-stage seconds, the objects (size in mean free paths, samples, flux) and
+    each transport's statistics; :meth:`prepare` builds the samples and transports without shading, and a
+    convolution transport's :meth:`~convsss.transport.convolution.ConvolutionTransport.layer_image` shows one
+    layer's exitance.
     """
 
     def __init__(self, props):
@@ -183,6 +190,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self.prepare(scene, scene.sensors()[0], 0)
         radiance, valid = self._shader.shade(sampler, ray)
         return radiance, valid, []
+
+
+ConvsssIntegrator.__doc__ = ConvsssIntegrator.__doc__.replace("{table}", plugin_parameters().replace("\n", "\n    "))
 
 
 def register():

@@ -59,6 +59,27 @@ def transport_parameters():
     return out
 
 
+def plugin_parameters():
+    """The integrator's parameters as Mitsuba documents a plugin's (a ``.. pluginparameters::`` table): name, type,
+    and the help with the allowed values and default, for every parameter a scene may set."""
+    from ..transport import TRANSPORTS
+
+    rows = [(p, "") for p in render_parameters()]
+    seen = {p.name for p, _ in rows}
+    for kind in sorted(TRANSPORTS):
+        for p in TRANSPORTS[kind].parameters:
+            if p.exposed and p.name not in seen:
+                seen.add(p.name)
+                rows.append((p, f" ({kind} transport)"))
+    lines = [".. pluginparameters::", ""]
+    for p, where in rows:
+        default = "none" if p.default in ("", None) else p.default
+        kind = {int: "integer", float: "float", str: "string"}[p.kind]
+        allowed = f" Allowed: {p.allowed()}." if p.kind is not str or p.choices else ""
+        lines += [f" * - {p.name}", f"   - |{kind}|", f"   - {p.help}{where}{allowed}", f"     (Default: {default})", ""]
+    return "\n".join(lines)
+
+
 class RenderParams:
     """Every ``convsss`` integrator parameter: the renderer's and the transports', each checked, defaults filled in.
 
