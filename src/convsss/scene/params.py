@@ -76,7 +76,8 @@ def plugin_parameters():
         default = "none" if p.default in ("", None) else p.default
         kind = {int: "integer", float: "float", str: "string"}[p.kind]
         allowed = f" Allowed: {p.allowed()}." if p.kind is not str or p.choices else ""
-        lines += [f" * - {p.name}", f"   - |{kind}|", f"   - {p.help}{where}{allowed}", f"     (Default: {default})", ""]
+        lines += [f" * - {p.name}", f"   - |{kind}|", f"   - {p.help}{where}{allowed}",
+                  f"     (Default: {default})", ""]
     return "\n".join(lines)
 
 
