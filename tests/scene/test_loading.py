@@ -1,9 +1,12 @@
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from convsss.backend import ordered_kernels
 from convsss.errors import ConvsssError
 from convsss.scene.loading import load_scene, scene_inputs
+from convsss.scene.quick import demo_mesh, mesh_dict
 
 
 def test_resizes_the_film(mi, sphere_scene):
@@ -73,3 +76,35 @@ def test_scene_inputs_finds_every_file_the_scene_names(tmp_path, monkeypatch):
     assert found == expected
     with pytest.raises(ConvsssError, match="does not exist"):
         scene_inputs(tmp_path / "nope.xml")
+
+def test_computed_vertex_normals_are_reordered_and_given_ones_kept(mi, tmp_path):
+    """The bunny has no normals: they become Mitsuba's recomputation on one thread. A PLY copy whose normals are
+    Mitsuba's in even rows and others (pointing away from the centre) in odd rows keeps the odd rows as loaded."""
+
+    def scene(shape):
+        return load_scene({"type": "scene", "sensor": {"type": "perspective"}, "shape": shape}).shapes()[0]
+
+    def normals(shape):
+        return np.array(shape.vertex_normals_buffer()).reshape(-1, 3)
+
+    bunny = scene(mesh_dict(demo_mesh()))
+    computed = normals(bunny)
+    with ordered_kernels():
+        bunny.recompute_vertex_normals()
+    assert np.array_equal(normals(bunny), computed)
+
+    params = mi.traverse(bunny)
+    position = np.array(params["vertex_positions"]).reshape(-1, 3)
+    given = position - position.mean(axis=0)
+    given /= np.linalg.norm(given, axis=1, keepdims=True)
+    given[::2] = computed[::2]
+    mesh = mi.Mesh("copy", len(position), len(params["faces"]) // 3, has_vertex_normals=True)
+    copy = mi.traverse(mesh)
+    copy["vertex_positions"], copy["faces"] = params["vertex_positions"], params["faces"]
+    copy["vertex_normals"] = mi.Float(given.astype(np.float32).ravel())
+    copy.update()
+    mesh.write_ply(str(tmp_path / "copy.ply"))
+    ply = {"type": "ply", "filename": str(tmp_path / "copy.ply")}
+    loaded = normals(scene(ply))
+    assert np.array_equal(loaded[1::2], normals(mi.load_dict(ply))[1::2])
+    assert np.array_equal(loaded[::2], computed[::2])

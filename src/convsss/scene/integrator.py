@@ -18,7 +18,7 @@ import warnings
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
 from ..memory import check_memory
 from ..timing import StageTimer
@@ -72,6 +72,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         self.progress = None
         self._shader = None
         self._nested = False
+        self._threads = 1
 
     def to_string(self):
         return f"ConvsssIntegrator[{', '.join(f'{k}={v!r}' for k, v in self.params.to_dict().items())}]"
@@ -167,10 +168,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         timer = StageTimer()
         self._nested = True
         try:
-            with timer("shading"):
+            # Mitsuba's film kernel scatter-adds each sample to every pixel its reconstruction filter covers: it runs
+            # on one thread, in lane order, so the image is bit-identical whatever the thread count; the shading
+            # (sample) runs on all threads.
+            with timer("shading"), ordered_kernels() as self._threads:
                 image = mi.SamplingIntegrator.render(self, scene, sensor, seed, spp, develop, evaluate)
                 dr.eval(image)
-                dr.sync_thread()
         finally:
             self._nested = False
         if self.should_stop():  # Mitsuba's SIGINT handler cancelled the render: no partial image leaves here
@@ -188,7 +191,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         if self._shader is None or self._shader.scene is not scene:
             # Called by another integrator's loop (e.g. Mitsuba's `aov`) without our render(): first sensor.
             self.prepare(scene, scene.sensors()[0], 0)
+        if self._nested:  # all threads for the shading, then one again for Mitsuba's film kernel (see render)
+            dr.set_thread_count(self._threads)
         radiance, valid = self._shader.shade(sampler, ray)
+        if self._nested:
+            dr.eval(radiance, valid)
+            dr.set_thread_count(1)
         return radiance, valid, []
 
 

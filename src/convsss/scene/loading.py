@@ -11,12 +11,20 @@ import re
 from pathlib import Path
 from xml.etree import ElementTree
 
-from ..backend import load_mitsuba
+import numpy as np
+
+from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
 from .integrator import register
 
 #: ``<string name=...>`` properties that name a file: every plugin's ``filename``, the convsss integrator's ``profile``.
 FILE_PROPERTIES = ("filename", "profile")
+
+#: Largest difference (per component) between a loaded vertex normal and its recomputation for which both are taken
+#: for the normal Mitsuba computed: rounding of a few float32 sums is about 2e-7, normals that came with a mesh
+#: differ far more.
+NORMAL_TOLERANCE = 1e-4
+
 
 
 def _load_error(error, context):
@@ -31,7 +39,8 @@ def _load_error(error, context):
 def load_scene(source, width=None, height=None):
     """A loaded ``mitsuba.Scene`` from an XML path or a scene dictionary; ``width``/``height`` resize every film.
 
-    Raises :class:`~convsss.errors.ConvsssError` (one line) when the file is missing or Mitsuba cannot load it.
+    Vertex normals that Mitsuba computed are recomputed in a fixed order (:func:`order_vertex_normals`). Raises
+    :class:`~convsss.errors.ConvsssError` (one line) when the file is missing or Mitsuba cannot load it.
     """
     mi = load_mitsuba()
     register()
@@ -50,6 +59,7 @@ def load_scene(source, width=None, height=None):
             raise _load_error(error, f"cannot load scene {str(path)!r}") from None
     if not scene.sensors():
         raise ConvsssError("the scene has no sensor (camera) to render from")
+    order_vertex_normals(mi, scene)
     for name, value in (("width", width), ("height", height)):
         if value is not None and (int(value) != value or value < 1 or value > 32768):
             raise ConvsssError(f"{name}={value!r} is not allowed: it must be a whole number of pixels in [1, 32768]")
@@ -123,6 +133,29 @@ def _resolve(name, folder, search):
         return name
     candidates = [folder / name, *(base / name for base in search)]
     return next((c for c in candidates if c.exists()), candidates[0])
+
+def order_vertex_normals(mi, scene):
+    """Replace the vertex normals Mitsuba computed while loading ``scene`` by the same computation on one thread.
+
+    Mitsuba computes the normals of a mesh loaded without them by scatter-adding face normals from all threads at
+    once, so their float sums, and the image, change from run to run. Its ``recompute_vertex_normals`` run on one
+    thread adds in a fixed order: bit-identical normals for any thread count. (Loading the whole scene on one thread
+    would hang Mitsuba's OpenEXR reader.) Normals further than :data:`NORMAL_TOLERANCE` from the recomputation came
+    with the mesh and are kept.
+    """
+    for shape in scene.shapes():
+        if not isinstance(shape, mi.Mesh) or not shape.has_vertex_normals():
+            continue
+        loaded = np.array(shape.vertex_normals_buffer(), dtype=np.float32).reshape(-1, 3)
+        with ordered_kernels():
+            shape.recompute_vertex_normals()
+        normals = np.array(shape.vertex_normals_buffer(), dtype=np.float32).reshape(-1, 3)
+        kept = np.abs(normals - loaded).max(axis=1) > NORMAL_TOLERANCE
+        if kept.any():
+            normals[kept] = loaded[kept]
+            params = mi.traverse(shape)
+            params["vertex_normals"] = mi.Float(normals.ravel())
+            params.update()
 
 
 def resize_film(mi, sensor, width=None, height=None):
