@@ -43,8 +43,9 @@ def scene_source_options(func):
         click.option("--height", type=int, help="Film height in pixels (default: the scene's; 800 with --mesh)."),
         click.option("--spp", type=int, help="Samples per pixel (default: the scene's sampler; 16 with --mesh)."),
         click.option("--seed", type=SEED, default=0, show_default=True,
-                     help="Random seed, 0 to 2^32 - 1: the same seed gives the same image (render: bit for bit, whatever the "
-                          "thread count; reference: up to Mitsuba's float rounding, about 1e-7 relative)."),
+                     help="Random seed, 0 to 2^32 - 1: the same seed gives the same image (render: bit for bit, "
+                          "whatever the thread count; reference: up to Mitsuba's float rounding, about 1e-7 "
+                          "relative)."),
     ]
     for option in reversed(options):
         func = option(func)

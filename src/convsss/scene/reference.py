@@ -38,7 +38,8 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
         Samples per pixel of each pass (the last one may have fewer).
     seed : int
         Pass ``k`` uses the seed ``(seed * 1_000_003 + k) mod 2^32`` (Mitsuba's seeds are 32-bit): the same seed
-        gives the same image.
+        gives the same image up to the order in which Mitsuba's threads add samples into the film (about 1e-7
+        relative).
     on_pass : callable, optional
         ``on_pass(mean_image, spp_done, pass_index, n_passes)`` after each pass (e.g. to save it).
     """
