@@ -270,42 +270,17 @@ def test_the_largest_seed_renders_a_reference(scene_file, tmp_path):
     assert json.loads((tmp_path / "ref.json").read_text())["seed"] == 2**32 - 1
 
 
-def test_ctrl_c_ends_reference_in_one_line_without_outputs(scene_file, tmp_path):
-    """SIGINT during the first pass: exit code 130, `interrupted`, no traceback and no file written."""
-    out = tmp_path / "out" / "ref"
-    proc = subprocess.Popen([sys.executable, "-m", "convsss", "reference", str(scene_file), "-o", str(out),
-                             "--width", "16", "--height", "16", "--spp", "1000000", "--pass-spp", "4000"],
-                            stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": _src_path()})
+def _interrupt(args, tmp_path, shown, wait=0.0):
+    """Run ``convsss ARGS``, send SIGINT once stderr shows ``shown`` (and ``wait`` seconds more): exit code 130,
+    ``interrupted``, no traceback and no file written."""
+    proc = subprocess.Popen([sys.executable, "-m", "convsss", *args], stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": _src_path()})
     started = ""
-    while "volpathmis" not in started:  # the progress bar shows once the scene is loaded, just before the 1st pass
+    while shown not in started:
         char = proc.stderr.read(1)
-        assert char, f"reference ended before its first pass: {started}"
+        assert char, f"the command ended before {shown!r}: {started}"
         started += char
-    time.sleep(0.3)  # inside the first pass, which takes seconds
-    proc.send_signal(signal.SIGINT)
-    try:
-        code = proc.wait(timeout=30)
-    finally:
-        proc.kill()
-    stderr = started + proc.stderr.read()
-    assert code == 130, stderr
-    assert "Traceback" not in stderr and stderr.rstrip().endswith("interrupted")
-    assert not [p for p in tmp_path.rglob("*") if p.is_file()]
-
-
-@pytest.mark.parametrize("stage", ["transport", "shading"])
-def test_ctrl_c_ends_render_in_one_line_without_outputs(tmp_path, stage):
-    """SIGINT once the progress bar shows ``stage``: exit code 130 within seconds, `interrupted`, no file written."""
-    out = tmp_path / "out" / "img"
-    proc = subprocess.Popen([sys.executable, "-m", "convsss", "render", "--mesh", "bunny", "--material", "wholemilk",
-                             "--size-mm", "40", "--width", "96", "--height", "96", "--spp", "256", "-o", str(out),
-                             "--transport", "exact"],
-                            stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": _src_path()})
-    started = ""
-    while stage not in started:
-        char = proc.stderr.read(1)
-        assert char, f"render ended before {stage}: {started}"
-        started += char
+    time.sleep(wait)
     proc.send_signal(signal.SIGINT)
     try:
         code = proc.wait(timeout=60)
@@ -315,3 +290,17 @@ def test_ctrl_c_ends_render_in_one_line_without_outputs(tmp_path, stage):
     assert code == 130, stderr
     assert "Traceback" not in stderr and stderr.rstrip().endswith("interrupted")
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]
+
+
+def test_ctrl_c_ends_reference_in_one_line_without_outputs(scene_file, tmp_path):
+    """SIGINT during the first pass (the progress bar shows once the scene is loaded, just before it)."""
+    _interrupt(["reference", str(scene_file), "-o", str(tmp_path / "out" / "ref"), "--width", "16", "--height", "16",
+                "--spp", "1000000", "--pass-spp", "4000"], tmp_path, "volpathmis", wait=0.3)
+
+
+@pytest.mark.parametrize("stage", ["transport", "shading"])
+def test_ctrl_c_ends_render_in_one_line_without_outputs(tmp_path, stage):
+    """SIGINT once the progress bar shows ``stage``."""
+    _interrupt(["render", "--mesh", "bunny", "--material", "wholemilk", "--size-mm", "40", "--width", "96",
+                "--height", "96", "--spp", "256", "-o", str(tmp_path / "out" / "img"), "--transport", "exact"],
+               tmp_path, stage)
