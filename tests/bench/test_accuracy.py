@@ -4,16 +4,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from convsss.bench.accuracy import (
-    bench_points,
-    convolution_configs,
-    error_metrics,
-    headline,
-    headline_text,
-    hierarchical_configs,
-    pareto_front,
-    time_at_error,
-)
+from convsss.bench.accuracy import bench_points, convolution_configs, error_metrics, hierarchical_configs
+from convsss.bench.pareto import headline, headline_text, pareto_front, time_at_error
 from convsss.bench.transport import lit_sphere
 from convsss.cli import cli
 from convsss.materials import material
