@@ -31,6 +31,7 @@ from .shading import Shader
 
 mi = load_mitsuba()
 
+
 class VisibilityWarning(UserWarning):
     """A translucent object is not seen by the camera and is skipped."""
 
@@ -115,7 +116,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             cell = cell_full / p.transport_params().get("downsample", 1.0)
             count = sample_count(obj.area_mm2, cell, p.sample_density)
             check_memory(count * BYTES_PER_SAMPLE, f"{count} surface samples of {obj.name!r}",
-                               "lower sample_density, or use downsample 0.5 or 0.25")
+                         "lower sample_density, or use downsample 0.5 or 0.25")
             self._check_irradiance_time(scene, count, obj.name)
             samples = object_samples(scene, obj, count, p.irradiance_samples, p.unit_mm, _seed(seed), stream=k,
                                      stage=lambda name: (self._stage(name), timer(name))[1])
@@ -161,8 +162,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         spp_used = spp if spp else sensor.sampler().sample_count()
         per_pass = min(spp_used, self.samples_per_pass) if self.samples_per_pass > 0 else spp_used
         check_memory(int(size[0]) * int(size[1]) * per_pass * BYTES_PER_PATH,
-                           f"{size[0]}x{size[1]} pixels at {per_pass} samples per pass",
-                           "set the integrator's samples_per_pass (e.g. 4) or render fewer spp")
+                     f"{size[0]}x{size[1]} pixels at {per_pass} samples per pass",
+                     "set the integrator's samples_per_pass (e.g. 4) or render fewer spp")
         self.prepare(scene, sensor, seed)
         self._stage("shading")
         timer = StageTimer()
