@@ -131,23 +131,12 @@ def _number(text):
             return text
 
 
-def integrator_parameters():
-    """Every integrator parameter a user sets: the renderer's, then each transport's exposed ones (declared once)."""
-    from ..scene.params import render_parameters, transport_parameters
-
-    return [*render_parameters(), *[p for p in transport_parameters().values()]]
-
-
 def integrator_options(func):
     """One option per integrator parameter, from its declaration; unset ones keep the scene's (or the default)."""
-    from ..transport import TRANSPORTS
+    from ..scene.params import integrator_parameters
 
-    owners = {}
-    for kind in sorted(TRANSPORTS):
-        for p in TRANSPORTS[kind].parameters:
-            owners.setdefault(p.name, kind)
-    for p in reversed(integrator_parameters()):
-        where = f" ({owners[p.name]} transport)" if p.name in owners else ""
+    for p, owner in reversed(integrator_parameters()):
+        where = f" ({owner} transport)" if owner else ""
         shown = "none" if p.default in ("", None) else p.default
         allowed = "" if p.kind is str else f" Allowed: {p.allowed()}."
         help_text = f"{p.help}{where}{allowed} [default: {shown}]"

@@ -44,35 +44,33 @@ def render_parameters():
     )
 
 
-def transport_parameters():
-    """The exposed (user-settable) parameters of every registered transport, by name.
-
-    A name declared by several transports maps to the first declaration (in name order of the transports).
-    """
+def integrator_parameters():
+    """Every parameter a scene or the command line may set, with the transport that declares it (``None``: the
+    renderer's own): the renderer's first, then each transport's exposed ones. A name declared by several transports
+    keeps its first declaration (transports in name order)."""
     from ..transport import TRANSPORTS
 
-    out = {}
-    for kind in sorted(TRANSPORTS):
-        for p in TRANSPORTS[kind].parameters:
-            if p.exposed:
-                out.setdefault(p.name, p)
-    return out
-
-
-def plugin_parameters():
-    """The integrator's parameters as Mitsuba documents a plugin's (a ``.. pluginparameters::`` table): name, type,
-    and the help with the allowed values and default, for every parameter a scene may set."""
-    from ..transport import TRANSPORTS
-
-    rows = [(p, "") for p in render_parameters()]
+    rows = [(p, None) for p in render_parameters()]
     seen = {p.name for p, _ in rows}
     for kind in sorted(TRANSPORTS):
         for p in TRANSPORTS[kind].parameters:
             if p.exposed and p.name not in seen:
                 seen.add(p.name)
-                rows.append((p, f" ({kind} transport)"))
+                rows.append((p, kind))
+    return rows
+
+
+def transport_parameters():
+    """The exposed (user-settable) parameters of every registered transport, by name (:func:`integrator_parameters`)."""
+    return {p.name: p for p, owner in integrator_parameters() if owner is not None}
+
+
+def plugin_parameters():
+    """The integrator's parameters as Mitsuba documents a plugin's (a ``.. pluginparameters::`` table): name, type,
+    and the help with the allowed values and default, for every parameter a scene may set."""
     lines = [".. pluginparameters::", ""]
-    for p, where in rows:
+    for p, owner in integrator_parameters():
+        where = f" ({owner} transport)" if owner else ""
         default = "none" if p.default in ("", None) else p.default
         kind = {int: "integer", float: "float", str: "string"}[p.kind]
         allowed = f" Allowed: {p.allowed()}." if p.kind is not str or p.choices else ""
@@ -132,7 +130,7 @@ class RenderParams:
     @classmethod
     def names(cls):
         """Every parameter name: the renderer's and every transport's exposed ones."""
-        return [p.name for p in render_parameters()] + [n for n in transport_parameters() if n != "transport"]
+        return [p.name for p, _ in integrator_parameters()]
 
     @classmethod
     def from_properties(cls, props):
