@@ -10,6 +10,12 @@ from convsss.errors import ConvsssError
 from convsss.files import atomic_write, check_outputs, json_ready, write_files, write_text
 
 
+def _fail(tmp):
+    """A write that dies half way."""
+    open(tmp, "w").write("half")
+    raise RuntimeError("disk full")
+
+
 def test_write_text_is_whole_and_leaves_no_temporary(tmp_path):
     path = write_text(tmp_path / "sub" / "a.json", "{}")
     assert path.read_text() == "{}" and [p.name for p in path.parent.iterdir()] == ["a.json"]
@@ -18,12 +24,8 @@ def test_write_text_is_whole_and_leaves_no_temporary(tmp_path):
 def test_failed_write_keeps_the_old_file_and_leaves_nothing(tmp_path):
     path = write_text(tmp_path / "a.txt", "old")
 
-    def fail(tmp):
-        open(tmp, "w").write("half")
-        raise RuntimeError("disk full")
-
     with pytest.raises(RuntimeError):
-        atomic_write(path, fail)
+        atomic_write(path, _fail)
     assert path.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["a.txt"]
 
 
@@ -54,12 +56,8 @@ def test_write_files_lands_all_files_together(tmp_path):
 def test_write_files_writes_nothing_when_one_file_fails(tmp_path):
     old = write_text(tmp_path / "a.exr", "old")
 
-    def fail(tmp):
-        open(tmp, "w").write("half")
-        raise RuntimeError("disk full")
-
     with pytest.raises(RuntimeError):
-        write_files({old: _writer("new"), tmp_path / "b.png": fail, tmp_path / "c.json": _writer("c")})
+        write_files({old: _writer("new"), tmp_path / "b.png": _fail, tmp_path / "c.json": _writer("c")})
     assert old.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["a.exr"]
 
 

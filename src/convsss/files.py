@@ -107,8 +107,7 @@ def write_files(writers):
     --------
     >>> import tempfile
     >>> folder = Path(tempfile.mkdtemp())
-    >>> [p.name for p in write_files({folder / "a.txt": lambda tmp: Path(tmp).write_text("a"),
-    ...                               folder / "b.txt": lambda tmp: Path(tmp).write_text("b")})]
+    >>> [p.name for p in write_files({folder / "a.txt": text_writer("a"), folder / "b.txt": text_writer("b")})]
     ['a.txt', 'b.txt']
     """
     paths = [Path(p) for p in writers]
@@ -147,9 +146,14 @@ def _umask():
     return mask
 
 
+def text_writer(text):
+    """``write(path)``, saving ``text``: one entry of :func:`write_files`."""
+    return lambda path: Path(path).write_text(text)
+
+
 def write_text(path, text):
     """Write ``text`` to ``path`` whole or not at all."""
-    return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+    return atomic_write(path, text_writer(text))
 
 
 def json_ready(value):

@@ -76,7 +76,7 @@ def bench_accuracy_command(quick, runs, width, size_mm, material, scenes, sample
     from pathlib import Path
 
     from ..bench.accuracy import accuracy_plot, bench_accuracy, report_text
-    from ..files import check_outputs, json_ready, write_files
+    from ..files import check_outputs, json_ready, text_writer, write_files
     from ..materials import material as lookup_material
 
     lookup_material(material)  # an unknown name fails before anything is loaded
@@ -95,7 +95,7 @@ def bench_accuracy_command(quick, runs, width, size_mm, material, scenes, sample
     if outputs:
         data = json.dumps(result, indent=1)
         write_files({outputs["png"]: lambda tmp: accuracy_plot(result, tmp),
-                     outputs["json"]: lambda tmp: Path(tmp).write_text(data),
-                     outputs["txt"]: lambda tmp: Path(tmp).write_text(text + "\n")})
+                     outputs["json"]: text_writer(data),
+                     outputs["txt"]: text_writer(text + "\n")})
         result["meta"]["outputs"] = {suffix: str(path) for suffix, path in outputs.items()}
     click.echo(json.dumps(result, indent=1) if as_json else text)

@@ -2,12 +2,11 @@
 
 import json
 import time
-from pathlib import Path
 
 import click
 
 from ..errors import ConvsssError
-from ..files import check_outputs, write_files
+from ..files import check_outputs, text_writer, write_files
 from .main import cli
 from .options import PROGRESS, load_source, output_stem, scene_source_options, source_inputs, tonemap_options
 
@@ -58,7 +57,7 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
             "passes_done": index + 1, "passes": n_passes, "seed": seed,
             "seconds": time.perf_counter() - start}, indent=1)
         write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure),
-                     info: lambda tmp: Path(tmp).write_text(text)})
+                     info: text_writer(text)})
         bar.update(done - bar.n)
 
     try:
