@@ -97,7 +97,7 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0):
     from ..scene.camera import pixel_footprint, sensor_frame
     from ..scene.irradiance import object_samples, sample_count
     from ..scene.loading import load_scene
-    from ..scene.objects import find_translucent_objects
+    from ..scene.objects import find_translucent_objects, hit_indices
     from ..scene.params import RenderParams
 
     mi = load_mitsuba()
@@ -118,8 +118,7 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0):
     film = mi.Point2f(((x.ravel() + 0.5) / width).astype(np.float32), ((y.ravel() + 0.5) / height).astype(np.float32))
     ray, _ = sensor.sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
     si = scene.ray_intersect(ray)
-    on_object = (si.is_valid().numpy() & (dr.reinterpret_array(mi.UInt32, si.shape).numpy() == obj.shape_index)
-                 & (dr.reinterpret_array(mi.UInt32, si.instance).numpy() == obj.instance_index))
+    on_object = si.is_valid().numpy() & obj.hit(*hit_indices(mi, si))
     points = dr.ravel(si.p).numpy().reshape(-1, 3)[on_object].astype(np.float64) * params.unit_mm
     normals = dr.ravel(mi.Vector3f(si.n)).numpy().reshape(-1, 3)[on_object].astype(np.float64) * obj.orientation
     return {"samples": samples, "points": np.ascontiguousarray(points), "normals": np.ascontiguousarray(normals),

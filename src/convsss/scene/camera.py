@@ -13,6 +13,7 @@ import numpy as np
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..samples import ViewFrame
+from .objects import hit_indices
 
 mi = load_mitsuba()
 
@@ -80,12 +81,11 @@ def first_hits(scene, sensor, frame, unit_mm, objects):
         ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(u, v), mi.Point2f(0.5, 0.5))
         si = scene.ray_intersect(ray)
         hit = si.is_valid().numpy()
-        shapes = dr.reinterpret_array(mi.UInt32, si.shape).numpy()
-        instances = dr.reinterpret_array(mi.UInt32, si.instance).numpy()
+        shapes, instances = hit_indices(mi, si)
         depth = frame.to_view(dr.ravel(si.p).numpy().reshape(-1, 3).astype(np.float64) * unit_mm)[:, 2]
         away = (dr.dot(si.n, ray.d) > 0).numpy()
         for (depths, aways), obj in zip(found, objects):
-            mine = hit & (shapes == obj.shape_index) & (instances == obj.instance_index)
+            mine = hit & obj.hit(shapes, instances)
             depths.append(depth[mine])
             aways.append(away[mine])
     return [(np.concatenate(depths), np.concatenate(aways)) for depths, aways in found]

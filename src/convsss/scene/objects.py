@@ -78,6 +78,10 @@ class TranslucentObject:
     bbox_mm: np.ndarray
     area_mm2: float
 
+    def hit(self, shapes, instances):
+        """Which lanes hit this object, from the per-lane registry indices of :func:`hit_indices`."""
+        return (shapes == self.shape_index) & (instances == self.instance_index)
+
     @property
     def eta(self):
         return self.material.eta
@@ -195,6 +199,14 @@ def _check_span(obj):
         warnings.warn(f"translucent shape {obj.name!r} spans {np.round(mfp, 6).tolist()} mean free paths "
                       f"(extent {obj.extent_mm:.4g} mm): outside [{low:g}, {high:g}] the scene units are probably "
                       "wrong; set the integrator's unit_mm to the mm per scene unit", UnitsWarning, stacklevel=4)
+
+
+def hit_indices(mi, si):
+    """Per lane of a surface interaction ``si``: the (shape, instance) registry indices as numpy arrays (0: none),
+    which identify a translucent object (:meth:`TranslucentObject.hit`)."""
+    import drjit as dr
+
+    return dr.reinterpret_array(mi.UInt32, si.shape).numpy(), dr.reinterpret_array(mi.UInt32, si.instance).numpy()
 
 
 def shape_index(mi, shape):

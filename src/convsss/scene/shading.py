@@ -28,6 +28,7 @@ import numpy as np
 from ..backend import load_mitsuba
 from ..fresnel import fresnel_transmittance
 from .mis import power_heuristic
+from .objects import hit_indices
 
 mi = load_mitsuba()
 
@@ -75,13 +76,12 @@ class Shader:
         An object is the pair (instance, shape): an instanced shape is shared by every instance of its shapegroup,
         and ``si.instance`` is null (index 0) on a plain shape.
         """
-        shapes = dr.reinterpret_array(mi.UInt32, si.shape).numpy()
-        instances = dr.reinterpret_array(mi.UInt32, si.instance).numpy()
+        shapes, instances = hit_indices(mi, si)
         valid = si.is_valid().numpy()
         which = np.full(len(shapes), -1, dtype=np.int64)
         eta = np.ones(len(shapes), dtype=np.float32)
         for k, obj in enumerate(self.objects):
-            on_object = valid & (shapes == obj.shape_index) & (instances == obj.instance_index)
+            on_object = valid & obj.hit(shapes, instances)
             which[on_object] = k
             eta[on_object] = obj.eta
         return which, eta
