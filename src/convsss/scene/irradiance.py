@@ -77,6 +77,14 @@ def sample_surface(shape, count, seed, orientation=1.0, stream=0, to_world=None)
     return position, normal, area
 
 
+def area_scale(linear):
+    """``s^2`` when the linear map is a similarity (``M^T M = s^2 I``: every area element scales by ``s^2``), else
+    None (the scale depends on the surface's orientation)."""
+    gram = linear.T @ linear
+    scale = np.trace(gram) / 3
+    return float(scale) if np.allclose(gram, scale * np.identity(3), rtol=0, atol=1e-6 * np.trace(gram)) else None
+
+
 def _geometric_normal(shape, u, normal, linear):
     """The unit geometric normal at the points ``shape.sample_position(0, u)``, whose normals are ``normal``, as far
     as the area element of ``linear`` depends on it.
@@ -85,9 +93,7 @@ def _geometric_normal(shape, u, normal, linear):
     an analytic shape or of a mesh without vertex normals; a mesh with vertex normals interpolates them, so the same
     points are drawn again from a copy of the mesh without them (same vertices and faces, same area PMF).
     """
-    gram = linear.T @ linear
-    similarity = np.allclose(gram, np.trace(gram) / 3 * np.identity(3), rtol=0, atol=1e-6 * np.trace(gram))
-    if similarity or not (shape.is_mesh() and shape.has_vertex_normals()):
+    if area_scale(linear) is not None or not (shape.is_mesh() and shape.has_vertex_normals()):
         return normal
     faceted = mi.Mesh("faceted", shape.vertex_count(), shape.face_count())
     source, params = mi.traverse(shape), mi.traverse(faceted)

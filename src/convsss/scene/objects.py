@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material
 from ..profiles import TabulatedProfile
-from .irradiance import sample_surface
+from .irradiance import area_scale, sample_surface
 
 #: Mitsuba class names of the boundaries a translucent object may have.
 BOUNDARY_CLASSES = {"Null": "null", "SmoothDielectric": "dielectric", "RoughDielectric": "roughdielectric"}
@@ -33,7 +33,7 @@ BOUNDARY_CLASSES = {"Null": "null", "SmoothDielectric": "dielectric", "RoughDiel
 SPAN_LIMITS = (1e-3, 1e6)
 #: Analytic shapes (Mitsuba class names) that bound a volume; disks, rectangles and cylinders are open.
 CLOSED_ANALYTIC = ("Sphere",)
-#: Stratified samples that estimate the world area of an instanced shape (exact for a plain one).
+#: Stratified samples that estimate the world area of a shape under a map that is no similarity.
 AREA_SAMPLES = 128 * 128
 
 
@@ -277,8 +277,13 @@ def world_bbox(shape, to_world):
 
 
 def world_area(shape, to_world):
-    """World area of ``shape`` placed by ``to_world``: ``sum_i A_i`` over :data:`AREA_SAMPLES` samples of
-    :func:`~convsss.scene.irradiance.sample_surface` (exact, up to rounding, for the identity)."""
+    """World area of ``shape`` placed by ``to_world``: its own area times ``s^2`` for a similarity (a plain shape:
+    ``s = 1``), else ``sum_i A_i`` over :data:`AREA_SAMPLES` samples of
+    :func:`~convsss.scene.irradiance.sample_surface`."""
+    local = float(np.asarray(shape.surface_area()).reshape(-1)[0])
+    scale = area_scale(to_world[:3, :3])
+    if scale is not None:
+        return local * scale
     _, _, area = sample_surface(shape, AREA_SAMPLES, seed=0, to_world=to_world)
     return float(np.sum(area.numpy(), dtype=np.float64))
 
