@@ -206,12 +206,13 @@ class ConvolutionTransport(Transport):
         self.workers = p["workers"]
         self.threshold, self.splat, self.downsample = p["threshold"], p["splat"], p["downsample"]
         self.correction = p["correction"]
-        splat, correction, workers = self.splat, self.correction, self.workers
 
         with self.timings("splat"):
             self._view = frame.to_view(samples.position)
             self._setup_grid(p["layers"], p["cell_size"], p["resolution"], profile, p["kernel_tail"])
-        if self.correction == "plane" and self.n_layers > 1 and samples.normal is None:
+        # The plane correction applies where there is depth to discretize: more than one layer.
+        self._corrects = self.correction == "plane" and self.n_layers > 1
+        if self._corrects and samples.normal is None:
             raise ConvsssError("the plane correction needs the samples' normals (or correction='none')")
         self.memory_bytes = self._memory_estimate()
         check_memory(self.memory_bytes, f"the convolution grid {self.grid_shape} x {self.n_layers} layers (FFT "
@@ -219,22 +220,22 @@ class ConvolutionTransport(Transport):
         with self.timings("splat"):
             grid = np.zeros((self.n_layers, 3) + self.padded_shape, dtype=np.float32)
             deposited = _splat(self._view, np.ascontiguousarray(samples.flux), self.x0, self.y0, self.cell, self.z0,
-                               self.dz, self.n_layers, splat == "half", grid)
+                               self.dz, self.n_layers, self.splat == "half", grid)
             self.source_layers = np.flatnonzero(deposited > 0).astype(np.int64)
         with self.timings("kernels"):
             table = profile.radial_table()
             r_core = float(np.min(profile.radius_below(0.5)))
             self._kernel_hat, self.kernel_energy, self.kernels_cached = kernel_spectra(
-                table, r_core, self.cell, self.dz, self.n_layers, self.reach, self.padded_shape, workers)
+                table, r_core, self.cell, self.dz, self.n_layers, self.reach, self.padded_shape, self.workers)
             at_layers = profile(self.dz * np.arange(self.n_layers))
             self.keep = at_layers >= self.threshold * profile(0.0)[None, :]  # paper Eq. 8, per channel
-        if correction == "plane" and self.n_layers > 1:
+        if self._corrects:
             with self.timings("correction"):
-                self._response = cached_plane_response(profile, profile_key(table), self.dz, splat)
+                self._response = cached_plane_response(profile, profile_key(table), self.dz, self.splat)
                 self._irradiance_grids = self._splat_irradiance()
         with self.timings("forward_fft"):
             sources = grid if len(self.source_layers) == self.n_layers else grid[self.source_layers]
-            self._phi_hat = scipy.fft.rfft2(sources, workers=workers, overwrite_x=True)
+            self._phi_hat = scipy.fft.rfft2(sources, workers=self.workers, overwrite_x=True)
         del grid
         self._exitance_layers = np.zeros((self.n_layers, 3) + self.grid_shape, dtype=np.float32)
         self.computed = np.zeros(self.n_layers, dtype=bool)
@@ -300,7 +301,7 @@ class ConvolutionTransport(Transport):
 
     def _correct(self, points, normals, exitance):
         """The plane correction (:mod:`.correction`, Eq. P1 and P2) of the layers' exitance, in place."""
-        if self.correction != "plane" or self.n_layers == 1:
+        if not self._corrects:
             return
         with self.timings("correction"):
             view = self.frame.to_view(points)
