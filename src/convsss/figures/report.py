@@ -165,7 +165,7 @@ def headline(run):
     if conv:
         mre = [r["vs_exact"]["mre"] for r in conv]
         ratio = [r["vs_exact"]["ratio"] for r in conv]
-        out["conv_vs_exact"] = {"mre_median": float(np.median(mre)), "mre_min": float(min(mre)),
+        out["conv_vs_exact"] = {"count": len(conv), "mre_median": float(np.median(mre)), "mre_min": float(min(mre)),
                                 "mre_max": float(max(mre)), "ratio_min": float(min(ratio)),
                                 "ratio_max": float(max(ratio))}
     for method in ("convolution", "hierarchical", "exact"):
@@ -222,8 +222,7 @@ def closing_note(run, settings):
                      f"(whole figure with references and errors: {v['figure_seconds']:.0f} s)")
     if "conv_vs_exact" in h:
         v = h["conv_vs_exact"]
-        count = sum(r["method"] == "convolution" for f in run["figures"] for r in f["panels"])
-        lines += ["", f"- **Convolution against the exact sum** (all {count} convolution panels): "
+        lines += ["", f"- **Convolution against the exact sum** (all {v['count']} convolution panels): "
                   f"mean relative error median {_pct(v['mre_median'])} "
                   f"(range {_pct(v['mre_min'])} – {_pct(v['mre_max'])}), mean ratio {v['ratio_min']:.3f} – "
                   f"{v['ratio_max']:.3f}."]
@@ -248,63 +247,104 @@ def closing_note(run, settings):
                          f"{s['sss_speedup']:.1f}× | {s['conv_total']:.2f} / {s['hier_total']:.2f} | "
                          f"{s['total_speedup']:.1f}× |")
     lines += ["", "## Where this disagrees with the paper, explained", ""]
-    lines += _disagreements(figures, h, settings["resolution"])
+    lines += _disagreement_lines(_disagreement_numbers(figures, h), settings["resolution"])
     return "\n".join(lines)
 
 
-def _disagreements(figures, h, resolution):
-    out = []
+def _disagreement_numbers(figures, h):
+    """The numbers behind :func:`_disagreement_lines` from the run's ``figures`` (by key) and its :func:`headline`
+    ``h``, as a dict with an entry per paragraph that has data:
+
+    - ``fig2``: ``paper_c``, the paper's c against ours with d_t and dz (mm); ``full_c``, c at t = 0;
+      ``small_mre``, the small bunny's errors at t = 0, 0.1 %, 5 % (None unless all three are there);
+    - ``fig5``: per layer count of the paper's panels (no correction) ``layers``, ``ratio``, ``mre``, ``dz_mm``;
+      ``mean_free_paths`` of the object (RGB); whether the error falls ``monotone``ly; the index of the panel whose
+      ratio is ``closest`` to 1; the ``plane``-corrected panels' layers, ratio and error;
+    - ``exact_vs_pt``: the exact dipole sum against volpathmis (panels, ratios);
+    - ``fig5_speed``: the convolution's subsurface speed-ups over the hierarchical method in Fig. 5.
+    """
+    out = {}
     fig2 = figures.get("fig2")
     if fig2:
         ours = {}
         for r in fig2["panels"]:
             size = "small" if r["panel"].endswith("small") else "large"
             ours[(size, r["params"]["threshold"])] = r
-        parts = []
+        paper_c = []
         for (size, t), paper in PAPER_C.items():
             r = ours.get((size, t))
             if r is None:
                 continue
             dt, dz = _dt_and_dz(r)
-            parts.append(f"{size} bunny at t = {100 * t:g} %: paper c = {paper}, ours c = {r['c']:.2f} "
-                         f"(d_t = {dt:.2f} mm, dz = {dz:.2f} mm)")
-        full = [r for (s, t), r in ours.items() if t == 0]
+            paper_c.append({"size": size, "threshold": t, "paper": paper, "c": r["c"], "dt_mm": dt, "dz_mm": dz})
+        small = [ours.get(("small", t)) for t in (0.0, 0.001, 0.05)]
+        out["fig2"] = {"paper_c": paper_c, "full_c": [r["c"] for (s, t), r in ours.items() if t == 0],
+                       "small_mre": ([r["vs_exact"]["mre"] for r in small]
+                                     if all(small) and all(r.get("vs_exact") for r in small) else None)}
+    fig5 = figures.get("fig5")
+    if fig5:
+        conv = [r for r in fig5["panels"]
+                if r["method"] == "convolution" and r["params"].get("correction", "none") == "none"]
+        plane = [r for r in fig5["panels"] if r["method"] == "convolution" and r["params"].get("correction") == "plane"]
+        closest = min(range(len(conv)), key=lambda k: abs(1 - conv[k]["vs_exact"]["ratio"]))
+        out["fig5"] = {
+            "layers": [r["params"]["layers"] for r in conv],
+            "ratio": [r["vs_exact"]["ratio"] for r in conv],
+            "mre": [r["vs_exact"]["mre"] for r in conv],
+            "dz_mm": [r.get("transport_stats", {}).get("dz_mm") for r in conv],
+            "mean_free_paths": conv[0].get("mean_free_paths"),
+            "monotone": all(a["vs_exact"]["mre"] >= b["vs_exact"]["mre"] for a, b in zip(conv, conv[1:])),
+            "closest": closest,
+            "plane": [{"layers": r["params"]["layers"], "ratio": r["vs_exact"]["ratio"], "mre": r["vs_exact"]["mre"]}
+                      for r in plane]}
+    pt = h.get("exact_vs_pt")
+    if pt:
+        out["exact_vs_pt"] = {"panels": pt["panels"], "ratio": pt["ratio"]}
+    if h["speed"]:
+        fig5_speed = [s for s in h["speed"] if s["figure"] == "fig5"]
+        if fig5_speed:
+            out["fig5_speed"] = [{"panel": s["panel"], "sss_speedup": s["sss_speedup"]} for s in fig5_speed]
+    return out
+
+
+def _disagreement_lines(n, resolution):
+    """The bullet points of "Where this disagrees with the paper" from :func:`_disagreement_numbers` (``n``) and the
+    run's panel ``resolution``."""
+    out = []
+    fig2 = n.get("fig2")
+    if fig2:
+        parts = [f"{p['size']} bunny at t = {100 * p['threshold']:g} %: paper c = {p['paper']}, ours c = {p['c']:.2f} "
+                 f"(d_t = {p['dt_mm']:.2f} mm, dz = {p['dz_mm']:.2f} mm)" for p in fig2["paper_c"]]
+        full = fig2["full_c"]
         out.append("- **Fig. 2, convolutions per layer c.** " + "; ".join(parts) + ". c counts, per layer, the "
                    "source layers within d_t = R_d⁻¹(t R_d(0)) (Eq. 8, the largest over RGB) of it, averaged over "
                    "the layers (end layers have fewer neighbours, so c < 2 d_t/dz + 1). It depends on the profile "
                    "and the object's depth, which the paper gives only as \"ten times smaller\": our 4 mm and 40 mm "
                    "bunnies are our choice, and wholemilk's blue channel, with the longest reach relative to its "
                    "R_d(0), sets d_t. "
-                   + ("With t = 0 every pair is kept: c = " + ", ".join(f"{r['c']:.2f}" for r in full)
+                   + ("With t = 0 every pair is kept: c = " + ", ".join(f"{c:.2f}" for c in full)
                       + " (the paper's 8 minus the end-layer effect)." if full else ""))
-        small = [ours.get(("small", t)) for t in (0.0, 0.001, 0.05)]
-        if all(small) and all(r.get("vs_exact") for r in small):
+        if fig2["small_mre"] is not None:
             out.append("- **Fig. 2, image change with t** (small bunny, err vs exact at t = 0, 0.1 %, 5 %): "
-                       + ", ".join(_pct(r["vs_exact"]["mre"]) for r in small)
+                       + ", ".join(_pct(e) for e in fig2["small_mre"])
                        + ". The paper sees \"almost identical\" results at 0.1 % and a noticeable difference at 5 %.")
-    fig5 = figures.get("fig5")
+    fig5 = n.get("fig5")
     if fig5:
-        conv = [r for r in fig5["panels"]
-                if r["method"] == "convolution" and r["params"].get("correction", "none") == "none"]
-        plane = [r for r in fig5["panels"] if r["method"] == "convolution" and r["params"].get("correction") == "plane"]
-        ratios = ", ".join(f"{r['params']['layers']} layers {r['vs_exact']['ratio']:.3f}" for r in conv)
-        errs = ", ".join(f"{r['params']['layers']}: {_pct(r['vs_exact']['mre'])}" for r in conv)
-        mfp = conv[0].get("mean_free_paths") if conv else None
-        dz = [(r["params"]["layers"], r.get("transport_stats", {}).get("dz_mm")) for r in conv]
-        dz_text = ", ".join(f"{n} layers dz = {d:.1f} mm" for n, d in dz if d)
-        monotone = all(a["vs_exact"]["mre"] >= b["vs_exact"]["mre"] for a, b in zip(conv, conv[1:]))
-        closest = min(conv, key=lambda r: abs(1 - r["vs_exact"]["ratio"]))
-        last = conv[-1]
+        layers, ratio, mre = fig5["layers"], fig5["ratio"], fig5["mre"]
+        ratios = ", ".join(f"{k} layers {x:.3f}" for k, x in zip(layers, ratio))
+        errs = ", ".join(f"{k}: {_pct(e)}" for k, e in zip(layers, mre))
+        mfp = fig5["mean_free_paths"]
+        dz_text = ", ".join(f"{k} layers dz = {d:.1f} mm" for k, d in zip(layers, fig5["dz_mm"]) if d)
+        closest, last = fig5["closest"], len(layers) - 1
         trend = ("The per-pixel error falls monotonically with the layer count, as the paper's Fig. 5 suggests, "
-                 if monotone else "The per-pixel error does not fall monotonically with the layer count, unlike "
-                 "what the paper's Fig. 5 suggests, ")
+                 if fig5["monotone"] else "The per-pixel error does not fall monotonically with the layer count, "
+                 "unlike what the paper's Fig. 5 suggests, ")
         trend += (f"but the brightness does not converge from one side: the ratio is closest to 1 at "
-                  f"{closest['params']['layers']} layers and {last['params']['layers']} layers are "
-                  f"{100 * (1 - last['vs_exact']['ratio']):.0f} % darker than the exact sum. "
-                  if last["vs_exact"]["ratio"] < 0.95 and closest is not last else "and so does the brightness. ")
-        first = conv[0]
-        if first["vs_exact"]["ratio"] > 1.25:
-            trend += (f"With {first['params']['layers']} layers the image is {first['vs_exact']['ratio']:.1f}× "
+                  f"{layers[closest]} layers and {layers[last]} layers are "
+                  f"{100 * (1 - ratio[last]):.0f} % darker than the exact sum. "
+                  if ratio[last] < 0.95 and closest != last else "and so does the brightness. ")
+        if ratio[0] > 1.25:
+            trend += (f"With {layers[0]} layers the image is {ratio[0]:.1f}× "
                       "as bright as the exact sum: the paper finds \"good solutions with a very low number of "
                       "layers\", but it tone-mapped every image on its own (the photographic operator keys on each "
                       "image's log-average), which hides a global brightness factor; our sheets show every panel "
@@ -322,12 +362,12 @@ def _disagreements(figures, h, resolution):
                    "R_d(dz), which is small (too dark: dominant with many layers until dz nears the mean free "
                    "path). The paper judged its Fig. 5 by eye against the hierarchical method; the pixel errors "
                    "are ours (see the error maps).")
-        if plane:
+        if fig5["plane"]:
             out.append("- **Fig. 5, beyond the paper.** With the plane correction of the depth discretization "
                        "(convsss.transport.correction), against the exact sum: " + ", ".join(
-                           f"{r['params']['layers']} layers: ratio {r['vs_exact']['ratio']:.3f}, mean relative error "
-                           f"{_pct(r['vs_exact']['mre'])}" for r in plane) + ".")
-    pt = h.get("exact_vs_pt")
+                           f"{p['layers']} layers: ratio {p['ratio']:.3f}, mean relative error {_pct(p['mre'])}"
+                           for p in fig5["plane"]) + ".")
+    pt = n.get("exact_vs_pt")
     if pt:
         out.append("- **The dipole against path tracing.** The exact dipole sum against volpathmis of the same scene: "
                    + "; ".join(f"{p}: ratio {r:.3f}" for p, r in zip(pt["panels"], pt["ratio"]))
@@ -335,18 +375,17 @@ def _disagreements(figures, h, resolution):
                    "no single scattering: on a curved object with thin parts (ears, edges) lit from behind it is "
                    "not the exact answer, and the paper, which compares only against another dipole method, does "
                    "not measure this. Both methods of the paper share the bias.")
-    if h["speed"]:
-        fig5_speed = [s for s in h["speed"] if s["figure"] == "fig5"]
-        if fig5_speed:
-            text = ", ".join(f"{s['panel']} {s['sss_speedup']:.1f}×" for s in fig5_speed)
-            out.append("- **Speed against the hierarchical method.** Subsurface time speed-ups of the convolution "
-                       f"over the hierarchical method in Fig. 5: {text}. The paper gives no hierarchical timing in "
-                       "its text. Our hierarchical lookups run once per camera sample (spp), the convolution's cost "
-                       "is per layer pixel; whole-render times also include irradiance sampling and ray tracing, "
-                       "shared by both."
-                       + (" The ratio grows with the resolution (the hierarchical method's cost grows with pixels × "
-                          "log samples, both growing with the image): this run's small images understate it; the "
-                          "full run renders the paper's 800×800." if resolution < 800 else ""))
+    speed = n.get("fig5_speed")
+    if speed:
+        text = ", ".join(f"{s['panel']} {s['sss_speedup']:.1f}×" for s in speed)
+        out.append("- **Speed against the hierarchical method.** Subsurface time speed-ups of the convolution "
+                   f"over the hierarchical method in Fig. 5: {text}. The paper gives no hierarchical timing in "
+                   "its text. Our hierarchical lookups run once per camera sample (spp), the convolution's cost "
+                   "is per layer pixel; whole-render times also include irradiance sampling and ray tracing, "
+                   "shared by both."
+                   + (" The ratio grows with the resolution (the hierarchical method's cost grows with pixels × "
+                      "log samples, both growing with the image): this run's small images understate it; the "
+                      "full run renders the paper's 800×800." if resolution < 800 else ""))
     out.append("- **Absolute times.** The paper quotes about 7 s (4 layers, 800×600, no optimizations) and about 2 s "
                "optimized, plus 14 s of ray tracing, on a 2011 i7. Our per-panel times above are for this run's "
                "resolution; the two cores are shared with other work, so compare ratios measured in one run, not "
