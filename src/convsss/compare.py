@@ -37,7 +37,19 @@ METRICS = ("rmse", "relmse", "mean_rel_error", "mean_reference", "mean_test", "m
 
 
 def object_mask(reference, mask=None):
-    """Boolean (H, W) mask of the object pixels: ``mask`` (any channel nonzero) or the nonzero reference pixels."""
+    """Boolean (H, W) mask of the object pixels: ``mask`` (any channel nonzero) or the nonzero reference pixels.
+
+    Parameters
+    ----------
+    reference : array_like, shape (H, W, 3)
+        Linear RGB; a pixel that is nonzero (or NaN) in some channel is an object pixel.
+    mask : array_like, shape (H, W) or (H, W, C), optional
+        Nonzero (or NaN) = object, in any channel; used instead of the reference when given.
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W), bool
+    """
     source = reference if mask is None else np.asarray(mask)
     source = np.nan_to_num(np.asarray(source, dtype=np.float64), nan=1.0)
     return np.any(source != 0, axis=-1) if source.ndim == 3 else source != 0
@@ -45,6 +57,18 @@ def object_mask(reference, mask=None):
 
 def block_average(image, k):
     """Average (H, W) or (H, W, C) ``image`` over k x k blocks: shape (H // k, W // k[, C]); the remainder is dropped.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (H, W, C)
+        Any numbers (a bool mask averages to the fraction of its pixels that are set).
+    k : int
+        Block side in pixels, >= 1.
+
+    Returns
+    -------
+    numpy.ndarray, shape (H // k, W // k) or (H // k, W // k, C), float64
+        The block means, in the unit of ``image``.
 
     Examples
     --------
@@ -66,6 +90,28 @@ def prepare(reference, test, mask=None, block=1, labels=("reference", "test")):
     """Check the images, find the object pixels and block-average: returns ``(A, B, object_mask)``.
 
     ``labels`` name the two images in error messages (e.g. their file names).
+
+    Parameters
+    ----------
+    reference, test : array_like, shape (H, W, 3)
+        Linear RGB of the same size, in the same unit; finite over the object pixels.
+    mask : array_like, shape (H, W) or (H, W, C), optional
+        The object pixels (see :func:`object_mask`); default: the reference's nonzero pixels.
+    block : int
+        Block side for block averaging (module docstring), 1 to ``min(H, W)``.
+    labels : tuple of str
+
+    Returns
+    -------
+    A, B : numpy.ndarray, shape (H', W', 3), float64
+        The images, block-averaged (``H' = H // block``, ``W' = W // block``).
+    object_mask : numpy.ndarray, shape (H', W'), bool
+        The object pixels (blocks wholly inside the object); at least one.
+
+    Raises
+    ------
+    ConvsssError
+        On any of the conditions above, in one line.
     """
     a = np.asarray(reference, dtype=np.float64)
     b = np.asarray(test, dtype=np.float64)
@@ -97,7 +143,25 @@ def prepare(reference, test, mask=None, block=1, labels=("reference", "test")):
 
 
 def relative_floor(a, inside):
-    """``f_c = FLOOR * mean(A_c)`` over the object, per channel; a black channel borrows the mean of all channels."""
+    """``f_c = FLOOR * mean(A_c)`` over the object, per channel; a black channel borrows the mean of all channels.
+
+    Parameters
+    ----------
+    a : numpy.ndarray, shape (H, W, 3)
+        The (prepared) reference, linear RGB.
+    inside : numpy.ndarray, shape (H, W), bool
+        The object pixels.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,), float64
+        The floor per channel, in the unit of ``a``.
+
+    Raises
+    ------
+    ConvsssError
+        When the reference is black in every channel over the object.
+    """
     mean = a[inside].mean(axis=0)
     if not np.any(mean > 0):
         raise ConvsssError("the reference is black over the object: relative errors are undefined")
@@ -105,7 +169,22 @@ def relative_floor(a, inside):
 
 
 def metrics(a, b, inside):
-    """Per channel metrics (see the module docstring) of prepared images; returns a dict of (3,) arrays."""
+    """Per channel metrics (see the module docstring) of prepared images; returns a dict of (3,) arrays.
+
+    Parameters
+    ----------
+    a, b : numpy.ndarray, shape (H, W, 3)
+        Reference and test image from :func:`prepare`, linear RGB in one unit.
+    inside : numpy.ndarray, shape (H, W), bool
+        The object pixels.
+
+    Returns
+    -------
+    dict of numpy.ndarray, shape (3,), float64
+        Every name of :data:`METRICS`: ``rmse`` and the means and maxima in the images' unit, ``relmse`` and
+        ``mean_rel_error`` and ``mean_ratio`` dimensionless (``mean_ratio`` NaN where the reference's channel
+        mean is 0).
+    """
     a_obj, b_obj = a[inside], b[inside]
     floor = relative_floor(a, inside)
     diff = b_obj - a_obj
@@ -125,6 +204,18 @@ def tonemap_pair(a, b, inside):
 
     The two images are tone-mapped side by side as one picture, with the log-average taken over the reference's
     object pixels only, so they share the scale and the white point.
+
+    Parameters
+    ----------
+    a, b : numpy.ndarray, shape (H, W, 3)
+        Reference and test image, linear RGB in one unit.
+    inside : numpy.ndarray, shape (H, W), bool
+        The reference's object pixels.
+
+    Returns
+    -------
+    tuple of two numpy.ndarray, shape (H, W, 3), float32
+        The sRGB-encoded display values (8-bit steps divided by 255) of ``a`` and ``b``.
     """
     pair = np.concatenate([a, b], axis=1)
     keyed = np.concatenate([inside, np.zeros_like(inside)], axis=1)
@@ -133,7 +224,20 @@ def tonemap_pair(a, b, inside):
 
 
 def flip_map(a, b, inside):
-    """The FLIP error map (H, W) in [0, 1] of the tone-mapped pair (LDR FLIP, default 67 pixels per degree)."""
+    """The FLIP error map (H, W) in [0, 1] of the tone-mapped pair (LDR FLIP, default 67 pixels per degree).
+
+    Parameters
+    ----------
+    a, b : numpy.ndarray, shape (H, W, 3)
+        Reference and test image, linear RGB in one unit (tone-mapped by :func:`tonemap_pair`).
+    inside : numpy.ndarray, shape (H, W), bool
+        The reference's object pixels, which key the tone mapping.
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W), float64
+        The FLIP error per pixel (dimensionless; over every pixel, not only the object's).
+    """
     import flip_evaluator
 
     ldr_a, ldr_b = tonemap_pair(a, b, inside)
@@ -147,6 +251,20 @@ def compare(reference, test, mask=None, block=1, labels=("reference", "test")):
 
     Returns a dict: ``pixels`` (object pixels, or blocks), ``block``, ``relative_floor`` and every name in
     :data:`METRICS` as RGB 3-lists of floats (NaN where undefined), plus the scalar ``flip_mean``.
+
+    Parameters
+    ----------
+    reference, test : array_like, shape (H, W, 3)
+        Linear RGB in one unit (e.g. radiance, as rendered).
+    mask, block, labels
+        As in :func:`prepare`.
+
+    Returns
+    -------
+    dict
+        Lists of 3 floats in the images' unit for ``relative_floor``, ``rmse`` and the means and maxima;
+        dimensionless for ``relmse``, ``mean_rel_error``, ``mean_ratio`` and the float ``flip_mean``; ints
+        ``pixels`` and ``block``.
 
     Examples
     --------
@@ -172,6 +290,20 @@ def error_image(reference, test, mask=None, block=1, limit=0.2, labels=("referen
 
     ``limit`` (> 0) is the relative error shown fully saturated (0.2: ±20 %). Write it with
     ``convsss.image.write_png(path, image, method="none")``.
+
+    Parameters
+    ----------
+    reference, test : array_like, shape (H, W, 3)
+        Linear RGB in one unit.
+    mask, block, labels
+        As in :func:`prepare`.
+    limit : float
+        Relative error (a fraction) at which the colour map saturates.
+
+    Returns
+    -------
+    numpy.ndarray, shape (H', W', 3), float64
+        Linear RGB in [0, 1], black off the object (``H' = H // block``, ``W' = W // block``).
     """
     from matplotlib import colormaps
 

@@ -30,13 +30,13 @@ def fresnel_reflectance(eta, cos_theta):
     ----------
     eta : float
         Relative index ``n_object / n_outside`` (> 0).
-    cos_theta : array_like
-        Cosine of the angle to the normal on the outside; its sign is ignored.
+    cos_theta : array_like, any shape
+        Cosine of the angle to the normal on the outside; its sign is ignored (values are clipped to [0, 1]).
 
     Returns
     -------
-    numpy.ndarray
-        Reflectance in [0, 1], the shape of ``cos_theta``.
+    numpy.ndarray, float64
+        Reflectance in [0, 1] (dimensionless), the shape of ``cos_theta``.
     """
     eta = check_eta(eta)
     cos_i = np.clip(np.abs(np.asarray(cos_theta, dtype=np.float64)), 0.0, 1.0)
@@ -54,7 +54,25 @@ def fresnel_reflectance(eta, cos_theta):
 
 
 def fresnel_transmittance(eta, cos_theta):
-    """``F_t(eta, cos) = 1 - F_r(eta, cos)``: the transmittance in paper Eq. 1, 2 and 7."""
+    """``F_t(eta, cos) = 1 - F_r(eta, cos)``: the transmittance in paper Eq. 1, 2 and 7.
+
+    Parameters
+    ----------
+    eta : float
+        Relative index ``n_object / n_outside`` (> 0).
+    cos_theta : array_like, any shape
+        Cosine of the angle to the normal on the outside; its sign is ignored.
+
+    Returns
+    -------
+    numpy.ndarray, float64
+        Transmittance in [0, 1] (dimensionless), the shape of ``cos_theta``.
+
+    Examples
+    --------
+    >>> fresnel_transmittance(1.5, [1.0, 0.0])
+    array([0.96, 0.  ])
+    """
     return 1.0 - fresnel_reflectance(eta, cos_theta)
 
 

@@ -24,7 +24,23 @@ _LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
 def luminance(rgb):
-    """Rec. 709 luminance of linear RGB (..., 3)."""
+    """Rec. 709 luminance of linear RGB (..., 3).
+
+    Parameters
+    ----------
+    rgb : array_like, shape (..., C), C >= 3
+        Linear RGB in any radiometric unit; channels past the third are ignored.
+
+    Returns
+    -------
+    numpy.ndarray, shape (...), float64
+        ``0.2126 R + 0.7152 G + 0.0722 B``, in the unit of ``rgb``.
+
+    Examples
+    --------
+    >>> float(luminance([1.0, 1.0, 1.0]))
+    1.0
+    """
     return np.asarray(rgb, dtype=np.float64)[..., :3] @ _LUMINANCE
 
 
@@ -60,6 +76,22 @@ def tonemap(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
 
     ``mask`` (H, W) restricts the log-average of the Reinhard operator to the pixels that matter (e.g. the object).
     Bad settings raise :class:`~convsss.errors.ConvsssError` (:func:`check_tonemap`).
+
+    Parameters
+    ----------
+    rgb : array_like, shape (H, W, C), C >= 3
+        Linear RGB in any radiometric unit; NaN and negative values count as 0, channels past the third are ignored.
+    method, key, exposure
+        As in :func:`check_tonemap`; ``exposure`` (stops) scales the image by ``2^exposure`` first, for every
+        method but ``none``.
+    mask : array_like of bool, shape (H, W), optional
+        The pixels whose log-average luminance keys the ``reinhard`` operator (default, or when empty: the non-black
+        pixels).
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W, 3), float64
+        Linear display values in [0, 1].
     """
     check_tonemap(method, key, exposure)
     rgb = np.maximum(np.nan_to_num(np.asarray(rgb, dtype=np.float64)[..., :3]), 0.0)
@@ -78,6 +110,16 @@ class Reinhard:
     anchor's non-black pixels), white point ``L_white`` = the largest scaled luminance; then
     ``L_d = L (1 + L / L_white^2) / (1 + L)`` with colours keeping their ratios. One operator applied to several
     images exposes them alike.
+
+    Parameters
+    ----------
+    anchor : array_like, shape (H, W, C), C >= 3
+        The linear RGB image (any radiometric unit) that fixes the scale and the white point; NaN and negative values
+        count as 0.
+    key : float
+        The key value (> 0).
+    mask : array_like of bool, shape (H, W), optional
+        The anchor's pixels to take the log-average over (default, or when empty: its non-black pixels).
     """
 
     def __init__(self, anchor, key=0.18, mask=None):
@@ -87,7 +129,19 @@ class Reinhard:
         self.white = max(float(np.max(lum, initial=0.0)) * self.scale, 1e-12)
 
     def __call__(self, rgb):
-        """Linear RGB (H, W, 3) to display values in [0, 1] (before sRGB encoding)."""
+        """Linear RGB (H, W, 3) to display values in [0, 1] (before sRGB encoding).
+
+        Parameters
+        ----------
+        rgb : array_like, shape (..., C), C >= 3
+            Linear RGB in the anchor's unit; NaN and negative values count as 0, channels past the third are
+            ignored.
+
+        Returns
+        -------
+        numpy.ndarray, shape (..., 3), float64
+            Linear display values in [0, 1].
+        """
         rgb = np.maximum(np.nan_to_num(np.asarray(rgb, dtype=np.float64)[..., :3]), 0.0)
         lum = luminance(rgb)
         scaled = self.scale * lum
@@ -98,7 +152,23 @@ class Reinhard:
 
 
 def srgb_encode(display):
-    """Linear [0, 1] to the sRGB transfer curve, then to uint8."""
+    """Linear [0, 1] to the sRGB transfer curve, then to uint8.
+
+    Parameters
+    ----------
+    display : array_like, any shape
+        Linear display values; clipped to [0, 1].
+
+    Returns
+    -------
+    numpy.ndarray, the shape of ``display``, uint8
+        sRGB-encoded values in 0..255, rounded to the nearest.
+
+    Examples
+    --------
+    >>> srgb_encode(np.array([0.0, 0.5, 1.0]))
+    array([  0, 188, 255], dtype=uint8)
+    """
     x = np.clip(display, 0.0, 1.0)
     encoded = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     return np.round(encoded * 255.0).astype(np.uint8)
@@ -112,14 +182,41 @@ def _bitmap(array):
 
 
 def display_png_writer(pixels):
-    """``write(path)``, saving sRGB uint8 pixels (H, W, 3) as a PNG: one entry of :func:`convsss.files.write_files`."""
+    """``write(path)``, saving sRGB uint8 pixels (H, W, 3) as a PNG: one entry of :func:`convsss.files.write_files`.
+
+    Parameters
+    ----------
+    pixels : array_like, shape (H, W, 3)
+        sRGB-encoded display values, converted to uint8 (0..255).
+
+    Returns
+    -------
+    callable
+        ``write(path)``, which saves the PNG at ``path``.
+    """
     mi, bitmap = _bitmap(np.asarray(pixels, dtype=np.uint8))
     return lambda path: bitmap.write(path, mi.Bitmap.FileFormat.PNG)
 
 
 def exr_writer(rgb):
     """``write(path)``, saving linear RGB (H, W, 3) as a float32 OpenEXR file: one entry of
-    :func:`convsss.files.write_files`, which writes several files together."""
+    :func:`convsss.files.write_files`, which writes several files together.
+
+    Parameters
+    ----------
+    rgb : array_like, shape (H, W, C), C >= 3
+        Linear RGB in any radiometric unit, stored as float32; channels past the third are dropped.
+
+    Returns
+    -------
+    callable
+        ``write(path)``, which saves the EXR at ``path``.
+
+    Raises
+    ------
+    ConvsssError
+        When ``rgb`` is not of shape (H, W, C) with C >= 3.
+    """
     rgb = np.asarray(rgb, dtype=np.float32)
     if rgb.ndim != 3 or rgb.shape[2] < 3:
         raise ConvsssError(f"an RGB image must have shape (H, W, 3), got {rgb.shape}")
@@ -129,22 +226,80 @@ def exr_writer(rgb):
 
 def png_writer(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
     """``write(path)``, saving linear RGB (H, W, 3) tone-mapped (:func:`tonemap`) as an 8-bit sRGB PNG: one entry of
-    :func:`convsss.files.write_files`."""
+    :func:`convsss.files.write_files`.
+
+    Parameters
+    ----------
+    rgb : array_like, shape (H, W, C), C >= 3
+        Linear RGB in any radiometric unit.
+    method, key, exposure, mask
+        As in :func:`tonemap` (``mask``: bool, shape (H, W)).
+
+    Returns
+    -------
+    callable
+        ``write(path)``, which saves the PNG at ``path``.
+    """
     return display_png_writer(srgb_encode(tonemap(rgb, method, key, exposure, mask)))
 
 
 def write_exr(path, rgb):
-    """Write linear RGB (H, W, 3) as a float32 OpenEXR file, atomically. Returns the path."""
+    """Write linear RGB (H, W, 3) as a float32 OpenEXR file, atomically. Returns the path.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    rgb : array_like, shape (H, W, C), C >= 3
+        Linear RGB in any radiometric unit, stored as float32; channels past the third are dropped.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return atomic_write(path, exr_writer(rgb))
 
 
 def write_png(path, rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
-    """Tone-map linear RGB (H, W, 3) and write an 8-bit sRGB PNG, atomically. Returns the path."""
+    """Tone-map linear RGB (H, W, 3) and write an 8-bit sRGB PNG, atomically. Returns the path.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    rgb : array_like, shape (H, W, C), C >= 3
+        Linear RGB in any radiometric unit.
+    method, key, exposure, mask
+        As in :func:`tonemap` (``mask``: bool, shape (H, W)).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return atomic_write(path, png_writer(rgb, method, key, exposure, mask))
 
 
 def read_image(path):
-    """Read an EXR (linear) or PNG/JPEG (sRGB-decoded to linear) image as float64 (H, W, 3)."""
+    """Read an EXR (linear) or PNG/JPEG (sRGB-decoded to linear) image as float64 (H, W, 3).
+
+    Parameters
+    ----------
+    path : str or Path
+        An image file Mitsuba's bitmap reader knows.
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W, 3), float64
+        Linear RGB (through float32): as stored for an EXR, in [0, 1] for an 8-bit image; a grey or RGBA image is
+        converted to RGB.
+
+    Raises
+    ------
+    ConvsssError
+        When the file does not exist or cannot be read.
+    """
     path = Path(path)
     if not path.is_file():
         raise ConvsssError(f"image {str(path)!r} does not exist")

@@ -17,7 +17,25 @@ from .errors import ConvsssError
 
 
 def as_points(points, name="points"):
-    """``points`` as a C-contiguous float64 array of shape (N, 3), or a one-line error."""
+    """``points`` as a C-contiguous float64 array of shape (N, 3), or a one-line error.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+        Positions or directions (mm for positions); every value finite.
+    name : str
+        What the points are, for the error message.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3), float64, C-contiguous
+        The same values (a copy only where a conversion was needed).
+
+    Raises
+    ------
+    ConvsssError
+        For another shape, or NaN or infinite values.
+    """
     arr = np.ascontiguousarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise ConvsssError(f"{name} must have shape (N, 3), got {arr.shape}")
@@ -69,7 +87,7 @@ class IrradianceSamples:
 
     @property
     def flux(self):
-        """``Phi_i = E_i A_i``, shape (N, 3)."""
+        """``Phi_i = E_i A_i``, shape (N, 3) float64: the irradiance's unit times mm^2."""
         return self.irradiance * self.area[:, None]
 
 
@@ -92,7 +110,21 @@ class ViewFrame:
 
     @classmethod
     def look_at(cls, origin, target, up=(0.0, 1.0, 0.0)):
-        """The frame of a camera at ``origin`` looking at ``target`` (``up`` need not be orthogonal)."""
+        """The frame of a camera at ``origin`` looking at ``target`` (``up`` need not be orthogonal).
+
+        Parameters
+        ----------
+        origin, target : array_like, shape (3,)
+            World positions (mm) of the camera and of the point it looks at; they must differ.
+        up : array_like, shape (3,)
+            A world direction that is to point up in the image; not parallel to the view direction.
+
+        Returns
+        -------
+        ViewFrame
+            With ``forward`` the unit vector from ``origin`` to ``target``, ``right = forward x up`` normalized and
+            ``up`` made orthogonal to both.
+        """
         origin = np.asarray(origin, dtype=np.float64)
         forward = np.asarray(target, dtype=np.float64) - origin
         if np.linalg.norm(forward) == 0:
@@ -106,13 +138,42 @@ class ViewFrame:
 
     @classmethod
     def from_matrix(cls, to_world):
-        """From a 4x4 camera-to-world matrix in Mitsuba's convention (local +z forward, +y up, +x to the left)."""
+        """From a 4x4 camera-to-world matrix in Mitsuba's convention (local +z forward, +y up, +x to the left).
+
+        Parameters
+        ----------
+        to_world : array_like, shape (4, 4)
+            The camera-to-world transform; its translation (the camera's position) in the frame's length unit (mm
+            for the transports). Its columns 1 and 2 (up, forward) are normalized; scale is dropped.
+
+        Returns
+        -------
+        ViewFrame
+            ``origin`` the translation, ``forward`` and ``up`` the matrix's local +z and +y, ``right = forward x up``
+            (Mitsuba's local -x).
+        """
         m = np.asarray(to_world, dtype=np.float64)
         forward = m[:3, 2] / np.linalg.norm(m[:3, 2])
         up = m[:3, 1] / np.linalg.norm(m[:3, 1])
         return cls(m[:3, 3], np.cross(forward, up), up, forward)
 
     def to_view(self, points):
-        """World points (N, 3) to view coordinates (x along right, y along up, z depth along forward)."""
+        """World points (N, 3) to view coordinates (x along right, y along up, z depth along forward).
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3)
+            World positions (mm).
+
+        Returns
+        -------
+        numpy.ndarray, shape (N, 3), float64
+            ``(points - origin)`` projected on ``right``, ``up`` and ``forward`` (mm).
+
+        Examples
+        --------
+        >>> ViewFrame.look_at([0, 0, 10], [0, 0, 0]).to_view([[1.0, 2.0, 0.0]])
+        array([[ 1.,  2., 10.]])
+        """
         axes = np.stack([self.right, self.up, self.forward])
         return (np.asarray(points, dtype=np.float64) - self.origin) @ axes.T
