@@ -272,7 +272,19 @@ class ConvolutionTransport(Transport):
                    + (8 * layers // 3 if self.correction == "plane" else 0))
 
     def compute_layers(self, layers):
-        """Exitance images of ``layers`` (those not computed yet): mixing per frequency, then inverse FFTs."""
+        """Exitance images of ``layers`` (those not computed yet): mixing per frequency, then inverse FFTs.
+
+        Parameters
+        ----------
+        layers : array_like of int
+            Layer indices in ``0 .. n_layers - 1``, in any order, repeats allowed.
+
+        Returns
+        -------
+        None
+            The images are kept (float32, shape (3, H, W) each, in the irradiance's unit) for lookups and
+            :meth:`layer_image`.
+        """
         todo = np.array([n for n in np.unique(layers) if not self.computed[n]], dtype=np.int64)
         if len(todo) == 0:
             return
@@ -343,13 +355,27 @@ class ConvolutionTransport(Transport):
         return out
 
     def layer_image(self, layer):
-        """The exitance image ``M_l`` (3, H, W) of one layer, computing it if needed."""
+        """The exitance image ``M_l`` (3, H, W) of one layer, computing it if needed.
+
+        Parameters
+        ----------
+        layer : int
+            The layer index, ``0 .. n_layers - 1`` (at depth ``z0 + layer dz``, mm).
+
+        Returns
+        -------
+        numpy.ndarray, shape (3, H, W), float32
+            A copy of ``M_l`` per RGB channel (the irradiance's unit), on the grid of ``grid_shape = (H, W)`` cells
+            of ``cell`` mm.
+        """
         self.compute_layers([layer])
         return self._exitance_layers[layer].copy()
 
     @property
     def pairs_per_layer(self):
-        """For every layer, how many non-empty source layers it convolves (max over channels): the paper's ``c``."""
+        """For every layer, how many non-empty source layers it convolves (max over channels): the paper's ``c``.
+
+        An int64 array of shape (n_layers,)."""
         distance = np.abs(self.source_layers[None, :] - np.arange(self.n_layers)[:, None])
         return self.keep[distance].sum(axis=1).max(axis=1)
 

@@ -46,7 +46,26 @@ N_W = 17
 
 
 def line_integral_table(profile, reach, size=384, quadrature=384):
-    """``Lambda(d) = ∫_{-inf}^{inf} R_d(sqrt(d^2 + v^2)) dv`` on a grid of ``d`` (0 and geometric up to ``reach``)."""
+    """``Lambda(d) = ∫_{-inf}^{inf} R_d(sqrt(d^2 + v^2)) dv`` on a grid of ``d`` (0 and geometric up to ``reach``).
+
+    Parameters
+    ----------
+    profile : Profile
+    reach : float
+        The largest distance ``d`` (mm).
+    size : int
+        Grid points: 0, then ``size - 1`` geometric from 1e-3 of the profile's half-peak radius (the smallest over
+        RGB) to ``reach``.
+    quadrature : int
+        Quadrature points in ``v`` (dense near 0, to ``reach``).
+
+    Returns
+    -------
+    d : numpy.ndarray, shape (size,), float64
+        The distances (mm).
+    values : numpy.ndarray, shape (size, 3), float64
+        ``Lambda(d)`` per RGB channel (1/mm).
+    """
     core = float(np.min(profile.radius_below(0.5)))
     d = np.concatenate([[0.0], np.geomspace(1e-3 * core, reach, size - 1)])
     # v = core * sinh(t): dense near 0, reaching far into the tail.
@@ -101,6 +120,26 @@ def plane_response(profile, dz, splat="linear", reach=None):
     """``C(cos_theta, w)`` per channel, shape (N_COS, N_W, 3), on ``cos_theta`` in [0, 1] and ``w`` in [0, 1].
 
     Returns ``(cos_grid, w_grid, C)``. With ``dz = 0`` (a single layer) the response is that of the flattened plane.
+
+    Parameters
+    ----------
+    profile : Profile
+    dz : float
+        Layer spacing (mm), >= 0.
+    splat : str
+        ``linear`` or ``half``: how a sample's flux goes to its two layers.
+    reach : float, optional
+        Radius (mm) past which the profile is neglected (the line integrals reach 4 times as far); default: the
+        radius holding all but 1e-5 of its energy, the largest over the channels.
+
+    Returns
+    -------
+    cos_grid : numpy.ndarray, shape (N_COS,), float64
+        ``cos_theta = |n . forward|`` from 0 (edge-on) to 1 (face-on).
+    w_grid : numpy.ndarray, shape (N_W,), float64
+        The receiver's depth fraction between its two layers, 0 to 1.
+    C : numpy.ndarray, shape (N_COS, N_W, 3), float64
+        The layers' response over the exact one (dimensionless); 1 in a channel whose total reflectance is 0.
     """
     reach = float(np.max(profile.radius_energy(1e-5))) if reach is None else reach
     d_grid, lam = line_integral_table(profile, 4.0 * reach)
@@ -121,7 +160,23 @@ RESPONSES = KernelCache(size=8)
 
 
 def cached_plane_response(profile, key, dz, splat):
-    """:func:`plane_response`'s ``C`` table, cached per (profile ``key``, ``dz``, splat rule)."""
+    """:func:`plane_response`'s ``C`` table, cached per (profile ``key``, ``dz``, splat rule).
+
+    Parameters
+    ----------
+    profile : Profile
+    key : hashable
+        Names the profile (:func:`~convsss.transport.kernels.profile_key` of its radial table).
+    dz : float
+        Layer spacing (mm).
+    splat : str
+        ``linear`` or ``half``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N_COS, N_W, 3), float64
+        ``C(cos_theta, w)`` per RGB channel, dimensionless.
+    """
     entry = (key, float(dz), splat)
     response = RESPONSES.get(entry)
     if response is None:
@@ -133,7 +188,27 @@ def cached_plane_response(profile, key, dz, splat):
 @numba.njit(parallel=True, cache=True)
 def apply_correction(exitance, cos_theta, w, irradiance, response, total):
     """The plane correction (Eq. P1, P2 of the module docstring) of ``exitance`` in place, ``C`` bilinear on its
-    (cos, w) grid."""
+    (cos, w) grid.
+
+    Parameters
+    ----------
+    exitance : numpy.ndarray, shape (K, 3), float64
+        The layers' exitance ``M_layers`` at K points (the irradiance's unit), corrected in place.
+    cos_theta : numpy.ndarray, shape (K,), float64
+        ``|n . forward|`` at each point (clamped to [0, 1]).
+    w : numpy.ndarray, shape (K,), float64
+        The point's depth fraction between its two layers (clamped to [0, 1]).
+    irradiance : numpy.ndarray, shape (K, 3), float64
+        ``E_q``, the local irradiance around each point.
+    response : numpy.ndarray, shape (n_cos, n_w, 3), float64
+        ``C`` on the uniform grids of :func:`plane_response` (n_cos, n_w >= 2).
+    total : numpy.ndarray, shape (3,), float64
+        ``R_total``, the profile's total diffuse reflectance per channel (dimensionless).
+
+    Returns
+    -------
+    None
+    """
     n_cos, n_w = response.shape[0], response.shape[1]
     for k in numba.prange(exitance.shape[0]):
         x = min(max(cos_theta[k], 0.0), 1.0) * (n_cos - 1)

@@ -27,7 +27,27 @@ _MAX_SUBCELLS = 256
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def kernel_quadrant(h, depth, nx, ny, r_scale, ds, table, r_core):
-    """Cell averages of ``R_d(sqrt(x^2 + y^2 + depth^2))`` for cells centred on ``(i h, j h)``, i < nx, j < ny."""
+    """Cell averages of ``R_d(sqrt(x^2 + y^2 + depth^2))`` for cells centred on ``(i h, j h)``, i < nx, j < ny.
+
+    Parameters
+    ----------
+    h : float
+        Cell side (mm).
+    depth : float
+        Depth offset between the two layers, ``m dz`` (mm).
+    nx, ny : int
+        Cells of the quadrant along x and y (the kernel's reach plus one).
+    r_scale, ds, table : float, float, numpy.ndarray of shape (size, 3), float64
+        The profile's radial table (:meth:`~convsss.profiles.Profile.radial_table`): ``r_scale`` in mm,
+        ``table`` ``R_d`` in 1/mm^2.
+    r_core : float
+        Radius (mm) on which the profile is flat near its centre; sets the sub-cell count.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, ny, nx), float64
+        The cell averages per RGB channel (1/mm^2), ``[c, j, i]`` for the cell centred on ``(i h, j h)``.
+    """
     out = np.zeros((3, ny, nx))
     for j in numba.prange(ny):
         for i in range(nx):
@@ -54,7 +74,25 @@ def kernel_quadrant(h, depth, nx, ny, r_scale, ds, table, r_core):
 
 
 def wrap_kernel(quadrant, padded_shape):
-    """Mirror a quadrant (3, ny, nx) into a (3, Py, Px) array with negative offsets wrapped to the end."""
+    """Mirror a quadrant (3, ny, nx) into a (3, Py, Px) array with negative offsets wrapped to the end.
+
+    Parameters
+    ----------
+    quadrant : numpy.ndarray, shape (3, ny, nx)
+        The kernel at offsets ``(j, i) >= 0`` (:func:`kernel_quadrant`), any unit.
+    padded_shape : tuple of int
+        ``(Py, Px)``, with ``Py >= 2 ny - 1`` and ``Px >= 2 nx - 1``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, Py, Px), float64
+        The whole even kernel, offset ``(dy, dx)`` stored at ``(dy mod Py, dx mod Px)``; zero elsewhere.
+
+    Examples
+    --------
+    >>> wrap_kernel(np.tile([[[1.0, 2.0]]], (3, 1, 1)), (1, 4))[0]  # offsets 0, 1, (2: empty), -1
+    array([[1., 2., 0., 2.]])
+    """
     _, ny, nx = quadrant.shape
     py, px = padded_shape
     full_y = np.concatenate([quadrant[:, :0:-1, :], quadrant], axis=1)  # rows -(ny-1)..ny-1
@@ -93,7 +131,19 @@ CACHE = KernelCache()
 
 
 def profile_key(table):
-    """A hashable fingerprint of a profile's radial table ``(r_scale, ds, values)``."""
+    """A hashable fingerprint of a profile's radial table ``(r_scale, ds, values)``.
+
+    Parameters
+    ----------
+    table : tuple
+        ``(r_scale, ds, values)`` of :meth:`~convsss.profiles.Profile.radial_table`: ``r_scale`` in mm, ``values``
+        a float64 array of shape (size, 3) (``R_d`` in 1/mm^2).
+
+    Returns
+    -------
+    tuple
+        ``(r_scale, ds, values.shape, hash of values' bytes)``.
+    """
     r_scale, ds, values = table
     return (float(r_scale), float(ds), values.shape, hash(values.tobytes()))
 
@@ -104,7 +154,8 @@ def kernel_spectra(table, r_core, h, dz, distances, reach, padded_shape, workers
     Parameters
     ----------
     table : tuple
-        The profile's ``radial_table()``.
+        The profile's ``radial_table()``: ``(r_scale`` in mm, ``ds``, ``values`` (size, 3) float64 ``R_d`` in
+        1/mm^2).
     r_core : float
         Radius (mm) on which the profile is flat near its centre; sets the sub-cell count.
     h, dz : float
@@ -116,12 +167,17 @@ def kernel_spectra(table, r_core, h, dz, distances, reach, padded_shape, workers
     padded_shape : tuple of int
         FFT shape ``(Py, Px)``.
 
+    workers : int
+        Threads of ``scipy.fft`` (-1: all cores).
+
     Returns
     -------
-    spectra : numpy.ndarray
-    sums : numpy.ndarray, shape (distances, 3)
-        ``h^2 sum K_m``: the energy each kernel carries (for stats and tests).
+    spectra : numpy.ndarray, shape (distances, 3, Py, Px // 2 + 1), float32
+        The real part of ``rfft2`` of each kernel ``K_m`` (1/mm^2) wrapped around the padded grid.
+    sums : numpy.ndarray, shape (distances, 3), float64
+        ``h^2 sum K_m``: the energy each kernel carries, dimensionless (for stats and tests).
     cached : bool
+        Whether the spectra came from the cache.
     """
     key = (profile_key(table), float(h), float(dz), int(distances), tuple(reach), tuple(padded_shape))
     hit = CACHE.get(key)

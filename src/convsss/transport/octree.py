@@ -42,7 +42,19 @@ def _spread_bits(v):
 
 
 def morton_codes(positions):
-    """63-bit Morton codes (x in the lowest bit of each triple) of ``positions`` (N, 3) over their bounding cube."""
+    """63-bit Morton codes (x in the lowest bit of each triple) of ``positions`` (N, 3) over their bounding cube.
+
+    Parameters
+    ----------
+    positions : numpy.ndarray, shape (N, 3), float64
+        Sample positions (mm; any length unit), N >= 1.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,), uint64
+        Each position's cell in a grid of 2^21 cells per axis over the bounding cube (side: the largest extent),
+        the bits of x, y, z interleaved.
+    """
     lo = positions.min(axis=0)
     extent = float(np.max(positions.max(axis=0) - lo))
     scale = (2**MORTON_BITS - 1) / extent if extent > 0 else 0.0
@@ -178,7 +190,24 @@ class Octree:
 
     @classmethod
     def build(cls, position, area, flux, leaf_size=8):
-        """Octree over samples at ``position`` (N, 3) with ``area`` (N,) and ``flux`` (N, 3), ``leaf_size`` >= 1."""
+        """Octree over samples at ``position`` (N, 3) with ``area`` (N,) and ``flux`` (N, 3), ``leaf_size`` >= 1.
+
+        Parameters
+        ----------
+        position : array_like, shape (N, 3)
+            Sample positions (mm), N >= 1.
+        area : array_like, shape (N,)
+            Sample areas (mm^2).
+        flux : array_like, shape (N, 3)
+            Sample flux ``E_i A_i`` per RGB channel (the irradiance's unit times mm^2).
+        leaf_size : int
+            The most samples a leaf holds (unless they share the finest cell).
+
+        Returns
+        -------
+        Octree
+            Its arrays float64 or int64, as listed in the class docstring.
+        """
         if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
             raise ConvsssError(f"leaf_size={leaf_size!r} is not allowed: it must be an integer >= 1")
         position = np.ascontiguousarray(position, dtype=np.float64)
@@ -200,7 +229,7 @@ class Octree:
 
     @property
     def leaves(self):
-        """Indices of the leaf nodes."""
+        """Indices of the leaf nodes: an int64 array, ascending."""
         return np.flatnonzero(self.child_count == 0)
 
     @property
