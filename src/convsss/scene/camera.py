@@ -67,8 +67,9 @@ def first_hits(scene, sensor, frame, unit_mm, objects):
     Returns
     -------
     list of (numpy.ndarray, numpy.ndarray)
-        Per object, the view depths (mm) of those pixel centres (empty: not visible) and whether the ray meets the
-        surface from the side its normal points away from (``n . d > 0``).
+        Per object, the view depths (mm, float64, shape (n,)) of those pixel centres (empty: not visible) and
+        whether the ray meets the surface from the side its normal points away from (``n . d > 0``; bool, shape
+        (n,)).
     """
     film = sensor.film()
     size, offset, crop = film.size(), film.crop_offset(), film.crop_size()

@@ -20,7 +20,27 @@ BOUNDARIES = ("null", "dielectric", "roughdielectric")
 
 
 def medium_parameters(material, unit_mm=1.0):
-    """``{"sigma_t": (3,), "scale": float, "albedo": (3,)}`` of ``material`` in scene units of ``unit_mm`` mm."""
+    """``{"sigma_t": (3,), "scale": float, "albedo": (3,)}`` of ``material`` in scene units of ``unit_mm`` mm.
+
+    Parameters
+    ----------
+    material : Material
+        ``sigma_s'`` and ``sigma_a`` in 1/mm.
+    unit_mm : float
+        mm per scene unit (finite, > 0).
+
+    Returns
+    -------
+    dict
+        ``sigma_t``: float64 (3,), the extinction over ``scale`` (at most 1, dimensionless); ``scale``: float, the
+        largest extinction, per scene unit; ``albedo``: float64 (3,), ``sigma_s' / (sigma_a + sigma_s')``.
+
+    Examples
+    --------
+    >>> from convsss.materials import Material
+    >>> medium_parameters(Material([1.0, 2.0, 3.0], [1.0, 0.0, 1.0], 1.3), unit_mm=0.5)["sigma_t"].tolist()
+    [0.5, 0.5, 1.0]
+    """
     unit_mm = float(unit_mm)
     if not np.isfinite(unit_mm) or unit_mm <= 0:
         raise ConvsssError(f"unit_mm={unit_mm!r} is not allowed: it must be finite and > 0")

@@ -79,7 +79,17 @@ class TranslucentObject:
     area_mm2: float
 
     def hit(self, shapes, instances):
-        """Which lanes hit this object, from the per-lane registry indices of :func:`hit_indices`."""
+        """Which lanes hit this object, from the per-lane registry indices of :func:`hit_indices`.
+
+        Parameters
+        ----------
+        shapes, instances : numpy.ndarray, shape (n,), uint32
+            Per lane, the registry indices of the shape hit and of its instance (0: none).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,), bool
+        """
         return (shapes == self.shape_index) & (instances == self.instance_index)
 
     @property
@@ -203,7 +213,19 @@ def _check_span(obj):
 
 def hit_indices(mi, si):
     """Per lane of a surface interaction ``si``: the (shape, instance) registry indices as numpy arrays (0: none),
-    which identify a translucent object (:meth:`TranslucentObject.hit`)."""
+    which identify a translucent object (:meth:`TranslucentObject.hit`).
+
+    Parameters
+    ----------
+    mi : module
+        Mitsuba, with its variant set.
+    si : mitsuba.SurfaceInteraction3f
+        n lanes.
+
+    Returns
+    -------
+    shapes, instances : numpy.ndarray, shape (n,), uint32
+    """
     import drjit as dr
 
     return dr.reinterpret_array(mi.UInt32, si.shape).numpy(), dr.reinterpret_array(mi.UInt32, si.instance).numpy()
@@ -260,14 +282,31 @@ def scene_surfaces(mi, scene):
 
 
 def instance_to_world(mi, instance):
-    """The (4, 4) transform of ``instance`` (scene units); the identity for a plain shape (``instance`` None)."""
+    """The (4, 4) transform of ``instance`` (scene units); the identity for a plain shape (``instance`` None).
+
+    Returns
+    -------
+    numpy.ndarray, shape (4, 4), float64
+    """
     if instance is None:
         return np.identity(4)
     return np.array(mi.traverse(instance)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
 
 
 def world_bbox(shape, to_world):
-    """(2, 3) world bounding box of ``shape`` placed by ``to_world``: the box around its bbox's 8 mapped corners."""
+    """(2, 3) world bounding box of ``shape`` placed by ``to_world``: the box around its bbox's 8 mapped corners.
+
+    Parameters
+    ----------
+    shape : mitsuba.Shape
+    to_world : numpy.ndarray, shape (4, 4), float64
+        The shape's placement (scene units): its instance's transform, or the identity.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2, 3), float64
+        The lowest and the highest corner, in scene units.
+    """
     box = shape.bbox()
     low, high = np.array(list(box.min), dtype=np.float64), np.array(list(box.max), dtype=np.float64)
     corners = np.array([[x, y, z, 1.0] for x in (low[0], high[0]) for y in (low[1], high[1])
@@ -279,7 +318,19 @@ def world_bbox(shape, to_world):
 def world_area(shape, to_world):
     """World area of ``shape`` placed by ``to_world``: its own area times ``s^2`` for a similarity (a plain shape:
     ``s = 1``), else ``sum_i A_i`` over :data:`AREA_SAMPLES` samples of
-    :func:`~convsss.scene.irradiance.sample_surface`."""
+    :func:`~convsss.scene.irradiance.sample_surface`.
+
+    Parameters
+    ----------
+    shape : mitsuba.Shape
+    to_world : numpy.ndarray, shape (4, 4), float64
+        The shape's placement (scene units): its instance's transform, or the identity.
+
+    Returns
+    -------
+    float
+        The area in scene units squared.
+    """
     local = float(np.asarray(shape.surface_area()).reshape(-1)[0])
     scale = area_scale(to_world[:3, :3])
     if scale is not None:

@@ -45,7 +45,18 @@ def mesh_dict(path):
 
 
 def mesh_bounds(path):
-    """(min, max) corners of the mesh in its own units."""
+    """(min, max) corners of the mesh in its own units.
+
+    Parameters
+    ----------
+    path : path-like
+        ``.obj``, ``.ply`` or ``.serialized`` mesh.
+
+    Returns
+    -------
+    lo, hi : numpy.ndarray, shape (3,), float64
+        The corners of its bounding box, in the mesh's units.
+    """
     mi = load_mitsuba()
     try:
         shape = mi.load_dict(mesh_dict(path))

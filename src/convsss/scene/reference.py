@@ -42,6 +42,11 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
         relative).
     on_pass : callable, optional
         ``on_pass(mean_image, spp_done, pass_index, n_passes)`` after each pass (e.g. to save it).
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W, 3), float64
+        The mean over all passes of the film's linear RGB (the scene's radiance unit).
     """
     spp, pass_spp = int(spp), int(pass_spp)
     if spp < 1 or pass_spp < 1:
