@@ -157,7 +157,22 @@ def write_text(path, text):
 
 
 def json_ready(value):
-    """``value`` with numpy arrays and scalars as lists and numbers, and NaN or infinities as None, recursively."""
+    """``value`` with numpy arrays and scalars as lists and numbers, and NaN or infinities as None, recursively.
+
+    Parameters
+    ----------
+    value : dict, list, tuple, numpy.ndarray, numpy scalar or any other value
+        Dictionary keys become strings, tuples lists; other values are kept.
+
+    Returns
+    -------
+    dict, list, int, float, None or the value itself
+
+    Examples
+    --------
+    >>> json_ready({1: np.array([0.5, np.inf])})
+    {'1': [0.5, None]}
+    """
     if isinstance(value, dict):
         return {str(k): json_ready(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):

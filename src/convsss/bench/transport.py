@@ -21,7 +21,23 @@ STAGES = ("splat", "kernels_cold", "kernels_cached", "forward_fft", "mixing", "i
 
 
 def lit_sphere(n, radius=10.0):
-    """``n`` Fibonacci points on a sphere lit by a directional light; the front half is the query set."""
+    """``n`` Fibonacci points on a sphere lit by a directional light; the front half is the query set.
+
+    Parameters
+    ----------
+    n : int
+        Samples on the sphere.
+    radius : float
+        Sphere radius (mm), centred on the origin.
+
+    Returns
+    -------
+    samples : IrradianceSamples
+        Positions (mm), equal areas ``4 pi radius^2 / n`` (mm^2), outward normals and the irradiance
+        ``max(n . l, 0)`` in every channel (a light of irradiance 1).
+    query : numpy.ndarray, shape (K, 3), float64
+        The sample positions with ``z > 0`` (mm).
+    """
     k = np.arange(n) + 0.5
     phi, theta = np.arccos(1 - 2 * k / n), np.pi * (1 + 5**0.5) * k
     normal = np.stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)], axis=1)
@@ -41,7 +57,29 @@ def fft_floor(padded_shape, forward, inverse, workers=-1):
 
 
 def transport_run(samples, query, frame, profile, resolution, layers, threshold):
-    """One timed run: stage seconds (cold kernels, then a second build with cached ones) and the FFT floor."""
+    """One timed run: stage seconds (cold kernels, then a second build with cached ones) and the FFT floor.
+
+    Parameters
+    ----------
+    samples : IrradianceSamples
+    query : numpy.ndarray, shape (K, 3), float64
+        Points (mm) whose exitance is looked up.
+    frame : ViewFrame
+    profile : Profile
+    resolution, layers : int
+        Grid cells across and layers of the convolution transport.
+    threshold : float
+        The paper's threshold t (Eq. 8).
+
+    Returns
+    -------
+    seconds : dict
+        Seconds per stage of :data:`STAGES`.
+    floor : float
+        Seconds of the bare FFTs (:func:`fft_floor`).
+    transport : ConvolutionTransport
+        The build with cached kernels, every layer computed.
+    """
     clear_caches()
     common = dict(layers=layers, resolution=resolution, threshold=threshold, correction="none")  # the paper's layers
     cold = ConvolutionTransport(samples, profile, frame, **common)

@@ -33,7 +33,19 @@ def file_digest(path):
 
 
 def canonical(value):
-    """A JSON-ready, deterministic form of a scene dictionary (or any nested value) for hashing."""
+    """A JSON-ready, deterministic form of a scene dictionary (or any nested value) for hashing.
+
+    Parameters
+    ----------
+    value : dict, list, tuple, numpy.ndarray, number, str, Mitsuba transform, ...
+        Dictionaries are sorted by key, an existing ``filename`` becomes the SHA-256 of its bytes and its suffix,
+        a transform its 4x4 matrix (9 significant digits), a float 12 significant digits, a numpy array a list;
+        anything else its ``repr``.
+
+    Returns
+    -------
+    dict, list, str, int, float, bool or None
+    """
     if isinstance(value, dict):
         out = {}
         for key, item in sorted(value.items()):
@@ -80,7 +92,14 @@ class ReferenceCache:
         return stem.with_suffix(".exr"), stem.with_suffix(".json")
 
     def load(self, kind, key):
-        """``(image, meta)`` of a complete entry, or ``None``."""
+        """``(image, meta)`` of a complete entry, or ``None``.
+
+        Returns
+        -------
+        tuple of (numpy.ndarray, dict) or None
+            The stored linear RGB image, shape (H, W, 3), float64 (read from float32), and its metadata; ``None``
+            when the entry is missing, incomplete or unreadable.
+        """
         from ..errors import ConvsssError
         from ..image import read_image
 
@@ -98,6 +117,26 @@ class ReferenceCache:
         """The cached reference, or ``render()`` (-> (H, W, 3) image, dict of extra metadata) stored first.
 
         Returns ``(image, meta, hit)``; ``meta`` holds ``seconds`` (of the original render), ``key`` and ``path``.
+
+        Parameters
+        ----------
+        kind : str
+            ``exact`` or ``volpathmis``: the file names' prefix.
+        scene : dict
+            The scene dictionary (hashed with :func:`canonical`).
+        settings : dict
+            The renderer's settings (JSON-ready), hashed too.
+        render : callable
+            ``render()`` -> ``(image, extra)``: linear RGB of shape (H, W, C >= 3), a dict or None.
+        description : str
+
+        Returns
+        -------
+        image : numpy.ndarray, shape (H, W, 3), float64
+            Linear RGB with float32 precision, as a later run reads it back.
+        meta : dict
+        hit : bool
+            Whether it came from the cache.
         """
         from ..image import write_exr
 

@@ -40,6 +40,23 @@ def render_convsss(scene, params, spp, seed=0, progress=None):
     ``summary``: ``seconds``, ``sss_seconds``, per-stage ``stage_seconds``, ``samples``, ``c`` (the paper's
     convolutions per layer, for the convolution transport), ``pairs_per_layer``, ``layers_computed``,
     ``mean_free_paths`` and the transport's own stats.
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+    params : RenderParams
+    spp : int
+        Samples per pixel.
+    seed : int
+    progress : callable, optional
+        Set as the integrator's ``progress`` (called with each stage's name).
+
+    Returns
+    -------
+    image : numpy.ndarray, shape (H, W, 3), float64
+        The film's linear RGB (the scene's radiance unit).
+    summary : dict
+        As above; seconds of wall time, ``mean_free_paths`` of the first object per RGB channel.
     """
     mi = load_mitsuba()
     integrator = mi.load_dict(params.integrator_dict())
@@ -62,6 +79,26 @@ def exact_reference(spec, cache, resolution, spp, seed=0, specular="phong"):
     """The ``exact``-transport render of ``spec`` (full-resolution samples), from ``cache`` or rendered now.
 
     Returns ``(image, meta, hit)``.
+
+    Parameters
+    ----------
+    spec : SceneSpec
+    cache : ReferenceCache
+    resolution : int
+        Film width and height (pixels).
+    spp, seed : int
+    specular : str
+        The integrator's specular term (``phong`` as the figures' panels).
+
+    Returns
+    -------
+    image : numpy.ndarray, shape (resolution, resolution, 3), float64
+        Linear RGB, rounded through float32 (as stored).
+    meta : dict
+        :meth:`ReferenceCache.get`'s metadata, plus ``render_seconds``, ``sss_seconds`` and ``samples`` of the
+        original render.
+    hit : bool
+        Whether it came from the cache.
     """
     params = RenderParams(**{**BASE_PARAMS, "specular": specular, "transport": "exact"})
 
@@ -80,7 +117,28 @@ def exact_reference(spec, cache, resolution, spp, seed=0, specular="phong"):
 
 
 def path_traced_reference(spec, cache, resolution, spp, pass_spp=16, seed=0, progress=True):
-    """The ``volpathmis`` render of ``spec`` (Russian roulette off, unbounded paths), cached; ``(image, meta, hit)``."""
+    """The ``volpathmis`` render of ``spec`` (Russian roulette off, unbounded paths), cached; ``(image, meta, hit)``.
+
+    Parameters
+    ----------
+    spec : SceneSpec
+    cache : ReferenceCache
+    resolution : int
+        Film width and height (pixels).
+    spp, pass_spp, seed : int
+        As in :func:`~convsss.scene.reference.render_reference`.
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    image : numpy.ndarray, shape (resolution, resolution, 3), float64
+        Linear RGB, rounded through float32 (as stored).
+    meta : dict
+        :meth:`ReferenceCache.get`'s metadata.
+    hit : bool
+        Whether it came from the cache.
+    """
     from tqdm import tqdm
 
     from ..scene.reference import render_reference

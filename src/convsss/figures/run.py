@@ -30,7 +30,21 @@ ERROR_LIMIT = 0.25
 
 
 def error_summary(reference, test, block=1):
-    """Mean relative error, relative L2, mean ratio (RGB-averaged), FLIP and the per-channel values."""
+    """Mean relative error, relative L2, mean ratio (RGB-averaged), FLIP and the per-channel values.
+
+    Parameters
+    ----------
+    reference, test : numpy.ndarray, shape (H, W, 3)
+        Linear RGB in one unit (:func:`convsss.compare.compare`).
+    block : int
+        Block averaging (1: pixel by pixel).
+
+    Returns
+    -------
+    dict
+        ``mre``, ``rel_l2`` (the square root of ``relmse``), ``ratio``, ``flip``: floats, dimensionless;
+        ``block``, ``pixels``: ints; ``per_channel``: RGB lists of ``mean_rel_error``, ``relmse``, ``mean_ratio``.
+    """
     result = compare(reference, test, block=block)
     return {"mre": float(np.mean(result["mean_rel_error"])), "rel_l2": float(np.mean(np.sqrt(result["relmse"]))),
             "ratio": float(np.mean(result["mean_ratio"])), "flip": float(result["flip_mean"]),

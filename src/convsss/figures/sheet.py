@@ -15,7 +15,22 @@ CAPTION_LINE_INCHES = 0.15
 
 
 def tonemap_groups(images, groups, anchors=None):
-    """sRGB uint8 images, one operator per group anchored on ``anchors[group]`` (default: the group's first image)."""
+    """sRGB uint8 images, one operator per group anchored on ``anchors[group]`` (default: the group's first image).
+
+    Parameters
+    ----------
+    images : list of numpy.ndarray, shape (H, W, 3)
+        Linear RGB panels (any radiometric unit, one for all).
+    groups : list of hashable
+        Each image's tone-mapping group.
+    anchors : dict, optional
+        ``{group: linear RGB image (H, W, 3)}`` that fixes the group's :class:`~convsss.image.Reinhard` operator.
+
+    Returns
+    -------
+    list of numpy.ndarray, shape (H, W, 3), uint8
+        The sRGB-encoded display images, in the order of ``images``.
+    """
     anchors = anchors or {}
     operators = {}
     out = []
@@ -27,7 +42,26 @@ def tonemap_groups(images, groups, anchors=None):
 
 
 def contact_sheet(path, title, displays, captions, columns, footer=""):
-    """Save a grid of ``displays`` (uint8 RGB) with ``captions`` (multi-line strings) under each; returns ``path``."""
+    """Save a grid of ``displays`` (uint8 RGB) with ``captions`` (multi-line strings) under each; returns ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The PNG to write.
+    title : str
+    displays : list of numpy.ndarray, shape (H, W, 3), uint8
+        sRGB-encoded panels (e.g. from :func:`tonemap_groups`).
+    captions : list of str
+        One per panel.
+    columns : int
+        Panels per row (at most the number of panels).
+    footer : str
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=False)
