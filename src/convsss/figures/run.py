@@ -101,7 +101,19 @@ class Runner:
         return time.perf_counter() - start
 
     def references(self, figure):
-        """``{spec: {"exact": (image, meta, hit), "volpathmis": ...}}`` for the figure's scenes."""
+        """``{spec: {"exact": (image, meta, hit), "volpathmis": ...}}`` for the figure's scenes.
+
+        Parameters
+        ----------
+        figure : Figure
+
+        Returns
+        -------
+        dict
+            Per :class:`~convsss.figures.scenes.SceneSpec`, the ``exact`` reference and, for a figure compared with
+            path tracing, the ``volpathmis`` one: each ``(image, meta, hit)`` with ``image`` linear RGB of shape
+            (error_resolution, error_resolution, 3), float64 (:func:`~convsss.figures.render.exact_reference`).
+        """
         s = self.settings
         refs = {}
         for spec in figure.scenes():
@@ -115,6 +127,24 @@ class Runner:
 
     # --- one panel ----------------------------------------------------------------------------------------------------
     def panel(self, figure, panel, refs):
+        """Render one panel (or take its reference) and measure its errors.
+
+        Parameters
+        ----------
+        figure : Figure
+        panel : Panel
+        refs : dict
+            The references of the panel's scene: one entry of :meth:`references`.
+
+        Returns
+        -------
+        image : numpy.ndarray, shape (H, W, 3), float64
+            The panel's linear RGB, at the panel resolution (a reference's at the error resolution).
+        record : dict
+            The panel's row of ``figures.json``.
+        test : numpy.ndarray, shape (H', W', 3), float64
+            The image the errors were measured on: ``image``, or the separate render at the error resolution.
+        """
         s = self.settings
         exact, exact_meta, exact_hit = refs["exact"]
         pt = refs.get("volpathmis")

@@ -26,8 +26,18 @@ class RadialTable:
 
     @classmethod
     def of(cls, profile):
-        """The table of ``profile`` (any :class:`~convsss.profiles.Profile`): its ``radial_table()`` (``values`` of
-        shape (size, 3), float64, 1/mm^2) and the radius ``r_max`` (mm) of its last entry."""
+        """The table of ``profile`` (any :class:`~convsss.profiles.Profile`).
+
+        Parameters
+        ----------
+        profile : Profile
+
+        Returns
+        -------
+        RadialTable
+            Its ``radial_table()`` (``values`` of shape (size, 3), float64, 1/mm^2) and the radius ``r_max`` (mm)
+            of the last entry.
+        """
         r_scale, ds, values = profile.radial_table()
         return cls(r_scale, ds, values, r_scale * float(np.expm1(ds * (len(values) - 1))))
 
