@@ -13,7 +13,8 @@ from convsss.transport import TRANSPORTS, make_transport
 FRAME = ViewFrame.look_at(origin=[0, 0, 50], target=[0, 0, 0])
 KINDS = sorted(TRANSPORTS)
 #: Per transport, settings that make it accurate on these small cases (the contract is about correctness).
-ACCURATE = {"convolution": {"layers": 16, "threshold": 0.0, "resolution": 256}, "hierarchical": {"epsilon": 0.01}}
+ACCURATE = {"convolution": {"layers": 16, "threshold": 0.0, "resolution": 256}, "hierarchical": {"epsilon": 0.01},
+            "multiscale": {"accuracy": 0.001}}
 
 
 def _make(kind, samples, profile, **params):

@@ -6,24 +6,28 @@ imports them all, so :data:`TRANSPORTS` holds every one:
 
 - ``exact``: the direct sum over all samples (reference, small cases);
 - ``convolution``: the paper's layered FFT convolutions (§4–5);
-- ``hierarchical``: Jensen & Buhler 2002's octree, the paper's comparison method (§6).
+- ``hierarchical``: Jensen & Buhler 2002's octree, the paper's comparison method (§6);
+- ``multiscale``: the profile split in a near field (direct sum over clustered samples) and a far field (3-D FFT).
 """
 
 from ..errors import ConvsssError
-from . import convolution, exact, hierarchical  # noqa: F401  (each registers its transport)
+from . import convolution, exact, hierarchical, multiscale  # noqa: F401  (each registers its transport)
 from .base import TRANSPORTS, Transport, register_transport
 from .convolution import ConvolutionTransport
 from .exact import ExactTransport
 from .hierarchical import HierarchicalTransport
+from .multiscale import MultiscaleTransport
 
 
 def clear_caches():
     """Forget every cached kernel spectrum and plane-correction table (for cold timings, or to free memory)."""
     from .correction import RESPONSES
     from .kernels import CACHE
+    from .multiscale import SPECTRA
 
     CACHE.clear()
     RESPONSES.clear()
+    SPECTRA.clear()
 
 
 def make_transport(kind, samples, profile, frame=None, **params):
@@ -37,5 +41,5 @@ def make_transport(kind, samples, profile, frame=None, **params):
     return TRANSPORTS[kind](samples, profile, frame, **params)
 
 
-__all__ = ["ConvolutionTransport", "ExactTransport", "HierarchicalTransport", "TRANSPORTS", "Transport",
-           "clear_caches", "make_transport", "register_transport"]
+__all__ = ["ConvolutionTransport", "ExactTransport", "HierarchicalTransport", "MultiscaleTransport", "TRANSPORTS",
+           "Transport", "clear_caches", "make_transport", "register_transport"]
