@@ -37,8 +37,10 @@ back light); ``dielectric``: a smooth dielectric (the material's eta) lit by a s
 place and a dim constant environment.
 """
 
+import hashlib
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -47,84 +49,14 @@ from ..compare import FLOOR
 from ..transport import TRANSPORTS, clear_caches, make_transport
 from ..transport.convolution import CORRECTIONS, DOWNSAMPLES
 from .pareto import METHOD_COLORS, headline, headline_text, mark_pareto, pareto_front
+from .scenes import REFERENCE_POINTS, SCENES, prepare_case, scene_dict
 
-LAYERS = (2, 4, 8, 16)
-THRESHOLDS = (0.0, 0.001, 0.05)
-#: The sweep asked for (0.01–1), plus 2 and 5: coarse enough to reach the convolution transport's errors.
-EPSILONS = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
-SCENES = ("null", "dielectric")
-
-
-# --- inputs --------------------------------------------------------------------------------------------------------
-def bunny_scene(kind, resolution=256, size_mm=40.0, material="wholemilk"):
-    """The Mitsuba scene dictionary of one benchmark scene: ``kind`` is ``null`` or ``dielectric`` (module doc)."""
-    from ..materials import material as lookup_material
-    from ..scene.quick import demo_mesh, quick_scene
-
-    if kind not in SCENES:
-        raise ValueError(f"scene {kind!r}: choose one of {', '.join(SCENES)}")
-    scene = quick_scene(demo_mesh(), lookup_material(material), size_mm, resolution, resolution, boundary=kind)
-    if kind == "dielectric":
-        from ..backend import load_mitsuba
-        from ..scene.quick import mesh_bounds
-
-        transform = load_mitsuba().ScalarTransform4f
-        lo, hi = mesh_bounds(demo_mesh())
-        centre = [0.0, 0.5 * size_mm * float((hi - lo)[1] / np.max(hi - lo)), 0.0]  # quick_scene's layout
-        key = np.asarray(scene.pop("key_light")["position"])
-        scene.pop("back_light")
-        side = 0.5 * size_mm
-        # A square light facing the object (a rectangle emits along its +z), irradiance about 1 at the object,
-        # and a dim environment that lights the back.
-        radiance = float(np.sum((key - centre) ** 2)) / side**2
-        to_world = transform().look_at(origin=key.tolist(), target=centre, up=[0.0, 1.0, 0.0])
-        scene["area_light"] = {"type": "rectangle", "to_world": to_world @ transform().scale([side / 2, side / 2, 1]),
-                               "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [radiance] * 3}}}
-        scene["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.05] * 3}}
-    return scene
-
-
-def prepare_case(scene_dict, sample_density=4.0, seed=0):
-    """Samples and visible points of the scene's (first) translucent object, as a render prepares them.
-
-    Returns a dict: ``samples`` (IrradianceSamples), ``points`` (K, 3) mm, their outward ``normals``, ``profile``,
-    ``frame`` (ViewFrame),
-    ``cell_size`` (mm, the pixel footprint at the object), ``object`` (its summary) and ``prepare_s`` (seconds).
-    """
-    import drjit as dr
-
-    from ..backend import load_mitsuba
-    from ..scene.camera import pixel_footprint, sensor_frame
-    from ..scene.irradiance import object_samples, sample_count
-    from ..scene.loading import load_scene
-    from ..scene.objects import find_translucent_objects, hit_indices
-    from ..scene.params import RenderParams
-
-    mi = load_mitsuba()
-    start = time.perf_counter()
-    scene = load_scene(scene_dict)
-    params = RenderParams(transport="exact", sample_density=sample_density)
-    sensor = scene.sensors()[0]
-    frame = sensor_frame(sensor, params.unit_mm)
-    obj = find_translucent_objects(mi, scene, params.unit_mm)[0]
-    depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
-    cell = pixel_footprint(sensor, frame, depth, params.unit_mm)
-    samples = object_samples(scene, obj, sample_count(obj.area_mm2, cell, sample_density), params.irradiance_samples,
-                             params.unit_mm, seed)
-    summary = {**obj.summary(), "samples": len(samples), "pixel_footprint_mm": cell, "view_depth_mm": depth}
-
-    width, height = (int(x) for x in sensor.film().crop_size())
-    y, x = np.mgrid[0:height, 0:width]
-    film = mi.Point2f(((x.ravel() + 0.5) / width).astype(np.float32), ((y.ravel() + 0.5) / height).astype(np.float32))
-    ray, _ = sensor.sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
-    si = scene.ray_intersect(ray)
-    on_object = si.is_valid().numpy() & obj.hit(*hit_indices(mi, si))
-    points = dr.ravel(si.p).numpy().reshape(-1, 3)[on_object].astype(np.float64) * params.unit_mm
-    normals = dr.ravel(mi.Vector3f(si.n)).numpy().reshape(-1, 3)[on_object].astype(np.float64) * obj.orientation
-    return {"samples": samples, "points": np.ascontiguousarray(points), "normals": np.ascontiguousarray(normals),
-            "profile": obj.profile,
-            "frame": frame, "cell_size": cell,
-            "object": summary, "image": [width, height], "prepare_s": time.perf_counter() - start}
+LAYERS = (4, 8, 16)
+THRESHOLDS = (0.001,)
+EPSILONS = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
+ACCURACIES = (0.003, 0.01, 0.03, 0.1)
+#: Where exact sums are kept between runs (keyed by a hash of the samples and the points).
+EXACT_CACHE = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "convsss" / "exact"
 
 
 # --- metrics -------------------------------------------------------------------------------------------------------
@@ -155,13 +87,19 @@ def hierarchical_configs(epsilons=EPSILONS):
     return [{"transport": "hierarchical", "epsilon": float(e)} for e in epsilons]
 
 
+def multiscale_configs(accuracies=ACCURACIES):
+    return [{"transport": "multiscale", "accuracy": float(a)} for a in accuracies]
+
+
 def label(config):
-    """Short name of a configuration for tables and plots, e.g. ``L8 d0.5 t0.1%`` or ``eps0.05``."""
+    """Short name of a configuration for tables and plots, e.g. ``L8 d0.5 t0.1%``, ``eps0.05`` or ``acc0.01``."""
     if config["transport"] == "convolution":
         plane = " +plane" if config.get("correction", "none") == "plane" else ""
         return f"L{config['layers']} d{config['downsample']:g} t{config['threshold']:.3g}{plane}"
     if config["transport"] == "hierarchical":
         return f"eps{config['epsilon']:g}"
+    if config["transport"] == "multiscale":
+        return f"acc{config['accuracy']:g}"
     return config["transport"]
 
 
@@ -188,7 +126,8 @@ def _warm_up(samples, points, profile, frame, cell_size):
     """Compile (or load from numba's cache) every kernel once, untimed, on a few points."""
     few = points[: max(1, min(len(points), 64))]
     for config in ({"transport": "exact"}, {"transport": "hierarchical", "epsilon": 0.1},
-                   {"transport": "convolution", "layers": 2, "downsample": 0.25, "threshold": 0.001}):
+                   {"transport": "convolution", "layers": 2, "downsample": 0.25, "threshold": 0.001},
+                   {"transport": "multiscale", "accuracy": 0.1}):
         timed_run(config, samples, few, profile, frame, cell_size)
 
 
@@ -196,20 +135,57 @@ def _stages(transport):
     return {k: float(v) for k, v in transport.timings.items()}
 
 
+def exact_reference(samples, points, profile, cache=EXACT_CACHE):
+    """The exact sum at ``points``: ``(exitance (K, 3), seconds)``, read from ``cache`` (a folder, or None) when these
+    samples and points were summed before (``seconds`` is then the time it took that first run)."""
+    key = hashlib.sha1(b"".join(np.ascontiguousarray(a).tobytes() for a in (
+        samples.position, samples.flux, points, profile.radial_table()[2]))).hexdigest()
+    path = None if cache is None else Path(cache) / f"{key}.npz"
+    if path is not None and path.is_file():
+        with np.load(path) as stored:
+            return stored["exitance"], float(stored["seconds"])
+    start = time.perf_counter()
+    exitance = make_transport("exact", samples, profile).exitance(points)
+    seconds = time.perf_counter() - start
+    if path is not None:
+        from ..files import atomic_write
+
+        def write(tmp):
+            with open(tmp, "wb") as stream:
+                np.savez(stream, exitance=exitance, seconds=seconds)
+
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, write)
+    return exitance, seconds
+
+
+def reference_subset(n_points, size=REFERENCE_POINTS, seed=1):
+    """Sorted indices of a fixed random subset of ``size`` of ``n_points`` (all of them where there are fewer)."""
+    if n_points <= size:
+        return np.arange(n_points)
+    return np.sort(np.random.default_rng(seed).choice(n_points, size, replace=False))
+
+
 def bench_points(samples, points, profile, frame, cell_size, configs, runs=3, bar=None, scene="scene",
-                 normals=None):
+                 normals=None, subset=None, cache=None):
     """Rows for one set of samples and visible points (numpy in, rows out); the exact sum first (error 0).
 
-    Each row: ``scene, transport, label, layers, downsample, threshold, epsilon, seconds`` (median of ``runs``),
-    ``seconds_runs``, ``stage_median_s`` (the transport's own stage timings), ``rel_l2, mean_rel, max_rel``,
-    ``points, samples`` and, for the convolution transport, ``fft_shape`` and ``pairs_per_layer``.
+    Every configuration is timed on all ``points`` (construct + one ``exitance`` call: the transport of a render
+    with one query per visible pixel); its error is measured against the exact sum at ``points[subset]`` (all of
+    them by default; :func:`exact_reference`, kept in ``cache``).
+
+    Each row: ``scene, transport, label, layers, downsample, threshold, epsilon, accuracy, seconds`` (median of
+    ``runs``), ``seconds_runs``, ``stage_median_s`` (the transport's own stage timings), ``rel_l2, mean_rel,
+    max_rel``, ``points, samples`` and, for the convolution transport, ``fft_shape`` and ``pairs_per_layer``. The
+    exact row's ``seconds`` and ``points`` are those of the reference subset.
     """
+    subset = np.arange(len(points)) if subset is None else np.asarray(subset)
     _warm_up(samples, points, profile, frame, cell_size)
-    seconds, reference, exact = timed_run({"transport": "exact"}, samples, points, profile, frame, cell_size)
+    reference, seconds = exact_reference(samples, points[subset], profile, cache)
     if bar is not None:
         bar.update()
-    rows = [_row(scene, {"transport": "exact"}, [seconds], [_stages(exact)], error_metrics(reference, reference),
-                 exact, len(points), len(samples))]
+    rows = [_row(scene, {"transport": "exact"}, [seconds], [{}], error_metrics(reference, reference), None,
+                 len(subset), len(samples))]
     times = [[] for _ in configs]
     stages = [[] for _ in configs]
     errors, last = [None] * len(configs), [None] * len(configs)
@@ -219,7 +195,7 @@ def bench_points(samples, points, profile, frame, cell_size, configs, runs=3, ba
             times[k].append(seconds)
             stages[k].append(_stages(transport))
             if run == 0:  # every run computes the same numbers
-                errors[k] = error_metrics(exitance, reference)
+                errors[k] = error_metrics(exitance[subset], reference)
             last[k] = transport
             if bar is not None:
                 bar.update()
@@ -234,7 +210,7 @@ def _row(scene, config, times, stages, errors, transport, n_points, n_samples):
     row = {"scene": scene, "transport": config["transport"], "method": method(config), "label": label(config),
            "layers": config.get("layers"), "downsample": config.get("downsample"),
            "threshold": config.get("threshold"), "correction": config.get("correction"),
-           "epsilon": config.get("epsilon"),
+           "epsilon": config.get("epsilon"), "accuracy": config.get("accuracy"),
            "seconds": float(np.median(times)), "seconds_runs": [float(t) for t in times],
            "stage_median_s": {name: float(np.median([s.get(name, 0.0) for s in stages])) for name in names},
            **errors, "points": int(n_points), "samples": int(n_samples)}
@@ -243,35 +219,44 @@ def _row(scene, config, times, stages, errors, transport, n_points, n_samples):
         row["pairs_per_layer"] = float(transport.pairs_per_layer.mean())
     if config["transport"] == "hierarchical":
         row["nodes_visited_per_query"] = float(transport.stats["nodes_visited_per_query"])
+    if config["transport"] == "multiscale":
+        row["scales_mm"] = transport.stats["scales_mm"]
+        row["clusters"] = transport.stats["clusters"]
     return row
 
 
 # --- the whole benchmark -------------------------------------------------------------------------------------------
-def bench_accuracy(scenes=SCENES, resolution=256, size_mm=40.0, material="wholemilk", layer_counts=LAYERS,
-                   downsamples=DOWNSAMPLES, thresholds=THRESHOLDS, epsilons=EPSILONS, runs=3, sample_density=4.0,
-                   seed=0, progress=True):
-    """Run the benchmark on each scene: ``{"meta", "rows", "headline": {scene: ...}}`` (module doc)."""
-    configs = convolution_configs(layer_counts, downsamples, thresholds) + hierarchical_configs(epsilons)
-    meta = {"resolution": int(resolution), "size_mm": float(size_mm), "material": material, "runs": int(runs),
-            "sample_density": float(sample_density), "seed": int(seed), "cpus": os.cpu_count(),
+def bench_accuracy(scenes=tuple(SCENES), resolution=800, layer_counts=LAYERS, downsamples=(1.0,),
+                   thresholds=THRESHOLDS, epsilons=EPSILONS, accuracies=ACCURACIES, runs=3, sample_density=4.0,
+                   seed=0, reference_points=REFERENCE_POINTS, cache=EXACT_CACHE, progress=True):
+    """Run the benchmark on each scene (names in :data:`SCENES`): ``{"meta", "rows", "headline": {scene: ...}}``;
+    the headline of each method against the hierarchical one (module doc)."""
+    configs = (multiscale_configs(accuracies) + convolution_configs(layer_counts, downsamples, thresholds)
+               + hierarchical_configs(epsilons))
+    meta = {"resolution": int(resolution), "runs": int(runs), "sample_density": float(sample_density),
+            "seed": int(seed), "reference_points": int(reference_points), "cpus": os.cpu_count(),
             "load_average_start": list(os.getloadavg()), "scenes": {}}
     rows, headlines = [], {}
     bar = tqdm(total=len(scenes) * (1 + runs * len(configs)), desc="bench accuracy", unit="run",
                disable=not progress)
     for scene in scenes:
         bar.set_postfix_str(f"{scene}: samples")
-        case = prepare_case(bunny_scene(scene, resolution, size_mm, material), sample_density, seed)
-        bar.set_postfix_str(scene)
-        meta["scenes"][scene] = {"points": len(case["points"]), "samples": len(case["samples"]),
+        case = prepare_case(scene_dict(scene, resolution), sample_density, seed)
+        subset = reference_subset(len(case["points"]), reference_points)
+        bar.set_postfix_str(f"{scene}: exact sum at {len(subset)} points")
+        spec = SCENES[scene]
+        meta["scenes"][scene] = {"mesh": spec.mesh, "material": spec.material, "size_mm": spec.size_mm,
+                                 "lighting": spec.lighting, "points": len(case["points"]),
+                                 "reference_points": len(subset), "samples": len(case["samples"]),
                                  "cell_size_mm": case["cell_size"], "image": case["image"],
                                  "boundary": case["object"]["boundary"], "eta": case["object"]["eta"],
                                  "mean_free_paths": case["object"]["mean_free_paths"],
                                  "prepare_s": case["prepare_s"]}
         scene_rows = bench_points(case["samples"], case["points"], case["profile"], case["frame"], case["cell_size"],
-                                  configs, runs, bar, scene, case["normals"])
+                                  configs, runs, bar, scene, case["normals"], subset, cache)
         rows += scene_rows
-        headlines[scene] = headline(scene_rows)
-        headlines[f"{scene} +plane"] = headline(scene_rows, "convolution+plane")
+        for name in ("multiscale", "convolution", "convolution+plane"):
+            headlines[scene if name == "convolution" else f"{scene} {name}"] = headline(scene_rows, name)
     bar.close()
     meta["load_average_end"] = list(os.getloadavg())
     return {"meta": meta, "rows": rows, "headline": headlines}
@@ -280,7 +265,7 @@ def bench_accuracy(scenes=SCENES, resolution=256, size_mm=40.0, material="wholem
 # --- reports -------------------------------------------------------------------------------------------------------
 def accuracy_table(rows):
     """The rows as a fixed-width text table; ``*`` marks a method's Pareto front."""
-    head = (f"{'scene':<10} {'transport':<12} {'lay':>3} {'down':>5} {'t':>6} {'eps':>5} {'seconds':>8} "
+    head = (f"{'scene':<16} {'transport':<12} {'acc':>6} {'lay':>3} {'down':>5} {'t':>6} {'eps':>5} {'seconds':>8} "
             f"{'kernels':>8} {'rel_l2':>8} {'mean_rel':>8} {'max_rel':>8}  front")
     lines = [head]
     for r in rows:
@@ -288,7 +273,8 @@ def accuracy_table(rows):
             return format(value, fmt) if value is not None else "-"
 
         kernels = r["stage_median_s"].get("kernels")
-        lines.append(f"{r['scene']:<10} {r['transport']:<12} {opt(r['layers'], '>3d'):>3} "
+        lines.append(f"{r['scene']:<16} {r['transport']:<12} {opt(r.get('accuracy'), 'g'):>6} "
+                     f"{opt(r['layers'], '>3d'):>3} "
                      f"{opt(r['downsample'], 'g'):>5} {opt(r['threshold'], '.1%'):>6} {opt(r['epsilon'], 'g'):>5} "
                      f"{r['seconds']:>8.3f} {opt(kernels, '.3f'):>8} {r['rel_l2']:>8.2%} {r['mean_rel']:>8.2%} "
                      f"{r['max_rel']:>8.1%}  {'*' if r.get('pareto') else ''}")
@@ -300,8 +286,9 @@ def report_text(result):
     meta = result["meta"]
     lines = [accuracy_table(result["rows"]), ""]
     for scene, facts in meta["scenes"].items():
-        lines.append(f"{scene}: {facts['image'][0]}x{facts['image'][1]} image, {facts['points']} visible points, "
-                     f"{facts['samples']} samples, boundary {facts['boundary']} (eta {facts['eta']:.3g}), "
+        lines.append(f"{scene}: {facts['image'][0]}x{facts['image'][1]} image, {facts['points']} visible points "
+                     f"({facts.get('reference_points', facts['points'])} with the exact sum), {facts['samples']} samples, "
+                     f"boundary {facts['boundary']} (eta {facts['eta']:.3g}), "
                      f"pixel {facts['cell_size_mm']:.3f} mm")
     lines.append(f"median of {meta['runs']} runs; load average {meta['load_average_start'][0]:.2f} at the start, "
                  f"{meta['load_average_end'][0]:.2f} at the end ({meta['cpus']} CPUs)")

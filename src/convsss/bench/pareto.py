@@ -9,7 +9,8 @@ import math
 import numpy as np
 
 #: Methods compared: the paper's layers, the layers with the plane correction (beyond the paper), Jensen–Buhler.
-METHOD_COLORS = {"convolution": "tab:blue", "convolution+plane": "tab:green", "hierarchical": "tab:orange"}
+METHOD_COLORS = {"multiscale": "tab:red", "convolution": "tab:blue", "convolution+plane": "tab:green",
+                 "hierarchical": "tab:orange"}
 
 
 def pareto_front(rows):
@@ -89,7 +90,7 @@ def headline(rows, convolution="convolution"):
     def span(chosen):
         return [min(r["rel_l2"] for r in chosen), max(r["rel_l2"] for r in chosen)] if chosen else None
 
-    return {"at_hierarchical": at_hier, "at_convolution": at_conv, "overlap": len(ratios),
+    return {"method": convolution, "at_hierarchical": at_hier, "at_convolution": at_conv, "overlap": len(ratios),
             "ratio_min": min(ratios) if ratios else None,
             "ratio_median": float(np.median(ratios)) if ratios else None,
             "ratio_max": max(ratios) if ratios else None,
@@ -99,27 +100,28 @@ def headline(rows, convolution="convolution"):
 def headline_text(scene, h):
     """A few lines that state the headline of ``scene``."""
     conv, hier = h["convolution_error_range"], h["hierarchical_error_range"]
+    name = h.get("method", "convolution")
     if conv is None or hier is None:
         return f"{scene}: nothing to compare"
-    lines = [f"{scene}: rel. L2 error: convolution {conv[0]:.2%}–{conv[1]:.2%}, hierarchical {hier[0]:.2%}–"
+    lines = [f"{scene}: rel. L2 error: {name} {conv[0]:.2%}–{conv[1]:.2%}, hierarchical {hier[0]:.2%}–"
              f"{hier[1]:.2%}"]
     if h["overlap"]:
         inside = [p for p in h["at_hierarchical"] if p["ratio"] is not None]
         lo, hi = min(p["rel_l2"] for p in inside), max(p["rel_l2"] for p in inside)
-        lines.append(f"  time(convolution) / time(hierarchical) at equal error = {h['ratio_median']:.2f} (median; "
+        lines.append(f"  time({name}) / time(hierarchical) at equal error = {h['ratio_median']:.2f} (median; "
                      f"{h['ratio_min']:.2f}–{h['ratio_max']:.2f} at the {h['overlap']} hierarchical point"
-                     f"{'s' if h['overlap'] != 1 else ''} with errors {lo:.2%}–{hi:.2%} inside the convolution "
+                     f"{'s' if h['overlap'] != 1 else ''} with errors {lo:.2%}–{hi:.2%} inside the {name} "
                      "front)")
     else:
-        lines.append("  no hierarchical point lies inside the convolution front's error range: no ratio at equal "
+        lines.append(f"  no hierarchical point lies inside the {name} front's error range: no ratio at equal "
                      "error from the hierarchical side")
     exact = [p for p in h["at_convolution"] if p["ratio"] is not None and not p["bound"]]
     bounds = [p for p in h["at_convolution"] if p["bound"]]
     if exact:
-        lines.append("  at the convolution front's points: ratio " + ", ".join(
+        lines.append(f"  at the {name} front's points: ratio " + ", ".join(
             f"{p['ratio']:.2f} ({p['label']}, {p['rel_l2']:.1%})" for p in exact))
     if bounds:
-        lines.append("  convolution front points less accurate than the hierarchical front's fastest point (whose "
+        lines.append(f"  {name} front points less accurate than the hierarchical front's fastest point (whose "
                      "time bounds the hierarchical time at that error): ratio >= " + ", ".join(
                          f"{p['ratio']:.2f} ({p['label']}, {p['rel_l2']:.1%})" for p in bounds))
     return "\n".join(lines)

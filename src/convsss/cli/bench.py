@@ -4,6 +4,7 @@ import json
 
 import click
 
+from ..bench.scenes import REFERENCE_POINTS, SCENES
 from .main import cli
 from .options import PROGRESS
 
@@ -41,20 +42,19 @@ def bench_transport_command(quick, runs, as_json, progress):
 
 @bench.command("accuracy")
 @click.option("--quick", is_flag=True,
-              help="A tiny run: 96² image, layers 2 and 8, downsample 1 and 1/2, t = 0.1 %, each as published and "
-                   "with the plane correction, epsilon 0.01, 0.1, 1, 5 (well under a minute).")
+              help="A tiny run: 96² image, the 4 mm and 40 mm bunnies, multiscale accuracy 0.01 and 0.1, layers 4 "
+                   "and 8 (t = 0.1 %, as published and with the plane correction), epsilon 0.05, 0.5, 2.")
 @click.option("--runs", type=click.IntRange(1), default=3, show_default=True,
               help="Timed runs per configuration (the median is reported).")
 @click.option("--width", type=click.IntRange(16, 4096), default=None,
               help="Image width and height in pixels (square): the visible points are its pixel centres on the "
-                   "object. [default: 256; 96 with --quick]")
-@click.option("--size-mm", "size_mm", type=click.FloatRange(0, min_open=True), default=40.0, show_default=True,
-              help="The bunny's largest side in mm.")
-@click.option("--material", default="wholemilk", show_default=True, help="A preset name (see `convsss materials`).")
-@click.option("--boundary", "scenes", type=click.Choice(["null", "dielectric", "both"]), default="both",
-              show_default=True,
-              help="null: index-matched boundary, two point lights; dielectric: smooth dielectric, area light and a "
-                   "dim environment.")
+                   "object. [default: 800; 96 with --quick]")
+@click.option("--scene", "scenes", multiple=True, type=click.Choice(list(SCENES)),
+              help="A benchmark scene (repeat for several) [default: all; bunny4 and bunny40 with --quick]: "
+                   + "; ".join(f"{name}: {s.size_mm:g} mm {s.material} {s.mesh}, {s.lighting}"
+                               for name, s in SCENES.items()) + ".")
+@click.option("--reference-points", type=click.IntRange(1), default=REFERENCE_POINTS, show_default=True,
+              help="Visible points (a fixed random subset) at which the exact sum is the reference.")
 @click.option("--sample-density", type=click.FloatRange(0, min_open=True), default=4.0, show_default=True,
               help="Surface samples per full-resolution pixel footprint (as the integrator's sample_density).")
 @click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False),
@@ -63,33 +63,30 @@ def bench_transport_command(quick, runs, as_json, progress):
 @click.option("--json", "as_json", is_flag=True,
               help="Print {meta, rows, headline} as JSON instead of the table.")
 @PROGRESS
-def bench_accuracy_command(quick, runs, width, size_mm, material, scenes, sample_density, out_dir, as_json, progress):
-    """Error against the exact sum versus wall time: convolution and hierarchical transports on a bunny.
+def bench_accuracy_command(quick, runs, width, scenes, reference_points, sample_density, out_dir, as_json, progress):
+    """Error against the exact sum versus wall time of every transport, at render scale.
 
-    Both transports get the same irradiance samples (prepared as a render does) and are queried at the same visible
-    points (camera rays through the pixel centres); the error is the relative L2 error of the exitance M against
-    the exact direct sum. Timed: constructing the transport and one exitance() call (kernels cold). Convolution:
-    layers 2/4/8/16 x downsample 1, 1/2, 1/4 x threshold 0, 0.1 %, 5 %, as published and with the plane
-    correction (beyond the paper); hierarchical: epsilon 0.01 to 5. Prints the table (* marks a method's Pareto
-    front) and the time ratio convolution / hierarchical at equal error, for each convolution method.
+    Every transport gets the same irradiance samples (prepared as a render does) and is queried at the same visible
+    points (camera rays through the pixel centres: one query per visible pixel). Timed: constructing the transport
+    and one exitance() call at all visible points (kernels cold), median of --runs. Error: of the exitance M
+    against the exact direct sum at a fixed random subset of the points (computed once, then kept in
+    ~/.cache/convsss/exact). Methods: multiscale (accuracy 0.003 to 0.1), the paper's layers 4/8/16 (t = 0.1 %) as
+    published and with the plane correction, hierarchical (epsilon 0.02 to 2). Prints the table (* marks a method's
+    Pareto front) and each method's time / hierarchical time at equal error.
     """
     from pathlib import Path
 
     from ..bench.accuracy import accuracy_plot, bench_accuracy, report_text
     from ..files import check_outputs, json_ready, text_writer, write_files
-    from ..materials import material as lookup_material
 
-    lookup_material(material)  # an unknown name fails before anything is loaded
     outputs = {suffix: Path(out_dir) / f"accuracy.{suffix}" for suffix in ("png", "json", "txt")} if out_dir else {}
     check_outputs(outputs.values())
-    chosen = ("null", "dielectric") if scenes == "both" else (scenes,)
-    options = dict(scenes=chosen, size_mm=size_mm, material=material, runs=runs, sample_density=sample_density,
-                   progress=progress)
+    options = dict(runs=runs, sample_density=sample_density, reference_points=reference_points, progress=progress)
     if quick:
-        result = bench_accuracy(resolution=width or 96, layer_counts=(2, 8), downsamples=(1.0, 0.5),
-                                thresholds=(0.001,), epsilons=(0.01, 0.1, 1.0, 5.0), **options)
+        result = bench_accuracy(scenes=scenes or ("bunny4", "bunny40"), resolution=width or 96,
+                                layer_counts=(4, 8), accuracies=(0.01, 0.1), epsilons=(0.05, 0.5, 2.0), **options)
     else:
-        result = bench_accuracy(resolution=width or 256, **options)
+        result = bench_accuracy(scenes=scenes or tuple(SCENES), resolution=width or 800, **options)
     result = json_ready(result)
     text = report_text(result)
     if outputs:

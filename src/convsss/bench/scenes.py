@@ -1,0 +1,119 @@
+"""The benchmark's scenes and how a case (samples and visible points) is prepared from one, as a render would.
+
+Importing this module is cheap (no Mitsuba, no numba): the command line lists :data:`SCENES` in its help.
+"""
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+#: Visible points at which the exact sum is the reference (a fixed random subset where there are more).
+REFERENCE_POINTS = 20000
+#: The test meshes beside the repository (``../shared/data/meshes``); the bunny is also bundled with the package.
+MESHES = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "meshes"
+
+
+@dataclass(frozen=True)
+class BenchScene:
+    """A benchmark scene: a mesh (``bunny``: the bundled one; else a file in :data:`MESHES`), a preset material,
+    the object's size, and its lighting: ``key+back`` (index-matched boundary, the quick scene's two point lights),
+    ``back`` (the back light alone: lit from behind) or ``area`` (a smooth dielectric under a square area light at the
+    key light's place and a dim constant environment)."""
+
+    mesh: str
+    material: str
+    size_mm: float
+    lighting: str = "key+back"
+
+
+SCENES = {
+    "bunny40": BenchScene("bunny", "wholemilk", 40.0),
+    "bunny4": BenchScene("bunny", "wholemilk", 4.0),
+    "armadillo60-back": BenchScene("armadillo.obj", "marble", 60.0, "back"),
+    "bust200": BenchScene("decimated-max.obj", "skin1", 200.0),
+    "dragon60": BenchScene("dragon.ply", "apple", 60.0, "area"),
+}
+
+
+def scene_dict(scene, resolution=800):
+    """The Mitsuba scene dictionary of a :class:`BenchScene` (or the name of one in :data:`SCENES`)."""
+    from ..errors import ConvsssError
+    from ..materials import material as lookup_material
+    from ..scene.quick import demo_mesh, mesh_bounds, quick_scene
+
+    if isinstance(scene, str):
+        if scene not in SCENES:
+            raise ConvsssError(f"benchmark scene {scene!r}: choose one of {', '.join(SCENES)}")
+        scene = SCENES[scene]
+    mesh = demo_mesh() if scene.mesh == "bunny" else MESHES / scene.mesh
+    if not mesh.is_file():
+        raise ConvsssError(f"benchmark mesh {str(mesh)!r} is missing (the test meshes live in ../shared/data/meshes)")
+    boundary = "dielectric" if scene.lighting == "area" else "null"
+    size_mm = scene.size_mm
+    out = quick_scene(mesh, lookup_material(scene.material), size_mm, resolution, resolution, boundary=boundary)
+    if scene.lighting == "back":
+        out.pop("key_light")
+    elif scene.lighting == "area":
+        from ..backend import load_mitsuba
+
+        transform = load_mitsuba().ScalarTransform4f
+        lo, hi = mesh_bounds(mesh)
+        centre = [0.0, 0.5 * size_mm * float((hi - lo)[1] / np.max(hi - lo)), 0.0]  # quick_scene's layout
+        key = np.asarray(out.pop("key_light")["position"])
+        out.pop("back_light")
+        side = 0.5 * size_mm
+        # A square light facing the object (a rectangle emits along its +z), irradiance about 1 at the object,
+        # and a dim environment that lights the back.
+        radiance = float(np.sum((key - centre) ** 2)) / side**2
+        to_world = transform().look_at(origin=key.tolist(), target=centre, up=[0.0, 1.0, 0.0])
+        out["area_light"] = {"type": "rectangle", "to_world": to_world @ transform().scale([side / 2, side / 2, 1]),
+                             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [radiance] * 3}}}
+        out["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.05] * 3}}
+    return out
+
+
+def prepare_case(scene_dict, sample_density=4.0, seed=0):
+    """Samples and visible points of the scene's (first) translucent object, as a render prepares them.
+
+    Returns a dict: ``samples`` (IrradianceSamples), ``points`` (K, 3) mm, their outward ``normals``, ``profile``,
+    ``frame`` (ViewFrame),
+    ``cell_size`` (mm, the pixel footprint at the object), ``object`` (its summary) and ``prepare_s`` (seconds).
+    """
+    import drjit as dr
+
+    from ..backend import load_mitsuba
+    from ..scene.camera import pixel_footprint, sensor_frame
+    from ..scene.irradiance import object_samples, sample_count
+    from ..scene.loading import load_scene
+    from ..scene.objects import find_translucent_objects, hit_indices
+    from ..scene.params import RenderParams
+
+    mi = load_mitsuba()
+    start = time.perf_counter()
+    scene = load_scene(scene_dict)
+    params = RenderParams(transport="exact", sample_density=sample_density)
+    sensor = scene.sensors()[0]
+    frame = sensor_frame(sensor, params.unit_mm)
+    obj = find_translucent_objects(mi, scene, params.unit_mm)[0]
+    depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
+    cell = pixel_footprint(sensor, frame, depth, params.unit_mm)
+    samples = object_samples(scene, obj, sample_count(obj.area_mm2, cell, sample_density), params.irradiance_samples,
+                             params.unit_mm, seed)
+    summary = {**obj.summary(), "samples": len(samples), "pixel_footprint_mm": cell, "view_depth_mm": depth}
+
+    width, height = (int(x) for x in sensor.film().crop_size())
+    y, x = np.mgrid[0:height, 0:width]
+    film = mi.Point2f(((x.ravel() + 0.5) / width).astype(np.float32), ((y.ravel() + 0.5) / height).astype(np.float32))
+    ray, _ = sensor.sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
+    si = scene.ray_intersect(ray)
+    on_object = si.is_valid().numpy() & obj.hit(*hit_indices(mi, si))
+    points = dr.ravel(si.p).numpy().reshape(-1, 3)[on_object].astype(np.float64) * params.unit_mm
+    normals = dr.ravel(mi.Vector3f(si.n)).numpy().reshape(-1, 3)[on_object].astype(np.float64) * obj.orientation
+    return {"samples": samples, "points": np.ascontiguousarray(points), "normals": np.ascontiguousarray(normals),
+            "profile": obj.profile,
+            "frame": frame, "cell_size": cell,
+            "object": summary, "image": [width, height], "prepare_s": time.perf_counter() - start}
+
+
