@@ -287,7 +287,8 @@ def report_text(result):
     lines = [accuracy_table(result["rows"]), ""]
     for scene, facts in meta["scenes"].items():
         lines.append(f"{scene}: {facts['image'][0]}x{facts['image'][1]} image, {facts['points']} visible points "
-                     f"({facts.get('reference_points', facts['points'])} with the exact sum), {facts['samples']} samples, "
+                     f"({facts.get('reference_points', facts['points'])} with the exact sum), "
+                     f"{facts['samples']} samples, "
                      f"boundary {facts['boundary']} (eta {facts['eta']:.3g}), "
                      f"pixel {facts['cell_size_mm']:.3f} mm")
     lines.append(f"median of {meta['runs']} runs; load average {meta['load_average_start'][0]:.2f} at the start, "

@@ -142,7 +142,7 @@ def far_spectrum(radial, r_c, a, b, h, fft_shape, reach):
     wrapped to the end) divided by the transfer function of the trilinear deposit and read-back, ``prod_axes
     sinc^4(f)`` (``f`` in cycles per cell, each tent being ``sinc^2``), so that on average over where the samples and
     the queries fall in their cells the mesh reproduces ``R_far`` rather than its blur. Per channel:
-    (3, nx, ny, nz // 2 + 1) complex.
+    (3, nx, ny, nz // 2 + 1) complex64.
     """
     half = [n // 2 + 1 for n in fft_shape]
     octant = _far_octant(h, np.array(half), r_c, a, b, reach, radial.r_scale, radial.ds, radial.values)
@@ -152,7 +152,7 @@ def far_spectrum(radial, r_c, a, b, h, fft_shape, reach):
     window = [np.sinc(f) ** 4 for f in (scipy.fft.fftfreq(fft_shape[0]), scipy.fft.fftfreq(fft_shape[1]),
                                          scipy.fft.rfftfreq(fft_shape[2]))]
     spectrum /= window[0][:, None, None] * window[1][None, :, None] * window[2][None, None, :]
-    return spectrum
+    return spectrum.astype(np.complex64)
 
 
 def cluster(position, normal, area, flux, size, origin):
@@ -389,15 +389,20 @@ class MultiscaleTransport(Transport):
         return np.ascontiguousarray(points @ np.stack([f.right, f.up, f.forward]).T) if vectors else f.to_view(points)
 
     def _far_field(self, position, flux, lo, hi):
-        """Deposit the clusters' flux on the mesh, convolve with ``R_far`` by 3-D FFTs (Eq. S2), keep the field."""
+        """Deposit the clusters' flux on the mesh, convolve with ``R_far`` by 3-D FFTs (Eq. S2), keep the field.
+
+        The mesh reaches ``r_c`` past the samples (queries off the surface within that distance read it; farther
+        ones read its border); float32 throughout (the error aimed at is far above its round-off).
+        """
         h = self.scales.mesh
-        lo = lo - h
-        shape = np.ceil((hi + h - lo) / h).astype(np.int64) + 1
+        lo = lo - self.scales.split
+        shape = np.ceil((hi + self.scales.split - lo) / h).astype(np.int64) + 2
         reach = np.asarray(self.profile.radius_energy(FAR_TAIL), dtype=np.float64)
         pad = np.minimum(shape - 1, math.ceil(float(reach.max()) / h))
         fft_shape = tuple(scipy.fft.next_fast_len(int(n + q), real=True) for n, q in zip(shape, pad))
-        cells = int(np.prod(fft_shape))
-        check_memory(3 * 8 * cells * 4, "multiscale far-field mesh", self.params["memory_limit"])
+        # The grid, its spectrum, the kernel's spectrum and the convolved field: 4 x 3 channels x 4 bytes a cell.
+        check_memory(48 * int(np.prod(fft_shape)), "the multiscale far-field mesh and its spectra",
+                     "raise the transport's accuracy (a coarser mesh)", self.params["memory_limit"])
         self._mesh_origin, self.fft_shape = lo, fft_shape
         with self.timings("far_kernel"):
             radial = RadialTable.of(self.profile)
@@ -407,11 +412,13 @@ class MultiscaleTransport(Transport):
                 kernel_hat = far_spectrum(radial, self.scales.split, *self._far_cap, h, fft_shape, reach)
                 SPECTRA.put(key, kernel_hat)
         with self.timings("deposit"):
-            grid = np.zeros((3,) + fft_shape)
+            grid = np.zeros((3,) + fft_shape, dtype=np.float32)
             _deposit(position, flux, lo, h, grid)
         with self.timings("far_fft"):
-            field = scipy.fft.irfftn(scipy.fft.rfftn(grid, axes=(1, 2, 3), workers=-1) * kernel_hat, fft_shape,
-                                     axes=(1, 2, 3), workers=-1)
+            spectrum = scipy.fft.rfftn(grid, axes=(1, 2, 3), workers=-1)
+            del grid
+            spectrum *= kernel_hat
+            field = scipy.fft.irfftn(spectrum, fft_shape, axes=(1, 2, 3), workers=-1, overwrite_x=True)
         nx, ny, nz = shape
         self._field = np.ascontiguousarray(field[:, :nx, :ny, :nz])
 
