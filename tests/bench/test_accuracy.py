@@ -93,22 +93,27 @@ def test_headline_ratio_with_and_without_overlap():
     assert "no hierarchical point" in headline_text("s", apart)
 
 
-def test_bench_accuracy_quick_end_to_end(tmp_path):
+def test_bench_accuracy_quick_end_to_end(tmp_path, monkeypatch):
+    import convsss.bench.accuracy as accuracy
+
+    summed = accuracy.exact_reference  # kept in the test's folder, not the user's cache
+    monkeypatch.setattr(accuracy, "exact_reference", lambda s, p, profile, cache: summed(s, p, profile, tmp_path))
     result = CliRunner().invoke(cli, ["bench", "accuracy", "--quick", "--width", "48", "--runs", "1", "--json",
                                       "--output", str(tmp_path)])
     assert result.exit_code == 0, result.output
     out = json.loads(result.stdout)
     assert set(out) == {"meta", "rows", "headline"}
-    assert set(out["meta"]["scenes"]) == {"null", "dielectric"}
-    assert out["meta"]["scenes"]["dielectric"]["eta"] > 1 and out["meta"]["scenes"]["null"]["eta"] == 1
-    for scene in ("null", "dielectric"):
+    assert set(out["meta"]["scenes"]) == {"bunny4", "bunny40"}
+    assert out["meta"]["scenes"]["bunny4"]["size_mm"] == 4 and out["meta"]["scenes"]["bunny40"]["size_mm"] == 40
+    for scene in ("bunny4", "bunny40"):
         rows = [r for r in out["rows"] if r["scene"] == scene]
-        assert [r["transport"] for r in rows].count("convolution") == 8
-        assert [r["method"] for r in rows].count("convolution+plane") == 4
-        assert [r["transport"] for r in rows].count("hierarchical") == 4
+        assert [r["transport"] for r in rows].count("multiscale") == 2
+        assert [r["transport"] for r in rows].count("convolution") == 4
+        assert [r["method"] for r in rows].count("convolution+plane") == 2
+        assert [r["transport"] for r in rows].count("hierarchical") == 3
         assert rows[0]["transport"] == "exact" and rows[0]["points"] > 50
-        assert {"at_hierarchical", "at_convolution", "overlap"} <= set(out["headline"][scene])
-        assert {"at_hierarchical", "at_convolution", "overlap"} <= set(out["headline"][f"{scene} +plane"])
+        for name in (scene, f"{scene} multiscale", f"{scene} convolution+plane"):
+            assert {"at_hierarchical", "at_convolution", "overlap"} <= set(out["headline"][name])
     assert (tmp_path / "accuracy.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert json.loads((tmp_path / "accuracy.json").read_text())["rows"] == out["rows"]
     assert "front" in (tmp_path / "accuracy.txt").read_text()

@@ -51,7 +51,8 @@ def test_help_explains_every_option():
 def test_render_a_scene_made_for_volpathmis(scene_file, tmp_path):
     out = tmp_path / "out" / "milk"
     stats = tmp_path / "milk.json"
-    result = run("render", scene_file, "-o", out, "--layers", 4, "--stats", stats, "--no-progress")
+    result = run("render", scene_file, "-o", out, "--transport", "convolution", "--layers", 4, "--stats", stats,
+                 "--no-progress")
     assert result.exit_code == 0, result.output
     image = read_image(out.with_suffix(".exr"))
     assert image.shape == (32, 40, 3) and image.max() > 0

@@ -21,7 +21,7 @@ def test_tiny_scene_renders_through_mi_render(mi, sphere_scene, object_mask):
     assert np.all(image[mask].mean(axis=0) > 0)
     stats = scene.integrator().stats
     assert stats["samples"] > 1000 and set(stats["seconds"]) >= {"samples", "irradiance", "transport", "shading"}
-    assert stats["transports"][0]["transport"] == "convolution"
+    assert stats["transports"][0]["transport"] == "multiscale"  # the default
 
 
 def test_same_seed_same_image(mi, sphere_scene):
@@ -53,8 +53,10 @@ def test_plane_correction_brings_few_layers_closer_to_the_exact_sum(mi, sphere_s
     correction. Measured: 5.5 % and 1.7 % (over all channels)."""
     images = {}
     for name, integrator in (("exact", {"transport": "exact"}),
-                             ("none", {"layers": 8, "threshold": 0.0, "correction": "none"}),
-                             ("plane", {"layers": 8, "threshold": 0.0, "correction": "plane"})):
+                             ("none", {"transport": "convolution", "layers": 8, "threshold": 0.0,
+                                       "correction": "none"}),
+                             ("plane", {"transport": "convolution", "layers": 8, "threshold": 0.0,
+                                        "correction": "plane"})):
         scene, images[name] = _render(mi, sphere_scene(integrator=integrator, res=64, spp=1), seed=3)
     mask = object_mask(scene)
     exact = images["exact"][mask]
@@ -123,7 +125,8 @@ def test_user_profile_replaces_the_dipole(mi, sphere_scene, object_mask, tmp_pat
 def test_two_objects_each_with_its_own_grid(mi, sphere_scene):
     second = convsss.scene.translucent({"type": "sphere", "radius": 1.0, "center": [3.0, 0.0, 0.0]},
                                        convsss.material("marble"), boundary="null")
-    scene, image = _render(mi, sphere_scene(res=40, extra={"second": second}))
+    scene, image = _render(mi, sphere_scene(res=40, extra={"second": second},
+                                            integrator={"transport": "convolution"}))
     stats = scene.integrator().stats
     assert [o["name"] for o in stats["objects"]] == ["object", "second"]
     assert len(stats["transports"]) == 2 and all("grid_shape" in t for t in stats["transports"])

@@ -4,9 +4,10 @@ from convsss.errors import ConvsssError
 from convsss.scene.params import RenderParams
 
 
-def test_defaults_are_the_papers():
+def test_defaults_are_the_papers_layers_and_the_multiscale_transport():
     p = RenderParams()
-    assert (p.layers, p.threshold, p.downsample, p.transport, p.splat) == (8, 0.001, 1.0, "convolution", "linear")
+    assert (p.layers, p.threshold, p.downsample, p.splat) == (8, 0.001, 1.0, "linear")  # the paper's layers
+    assert p.transport == "multiscale" and p.accuracy == 0.01
     assert p.integrator_dict()["type"] == "convsss"
 
 

@@ -24,8 +24,9 @@ def available_transports():
 def render_parameters():
     """The renderer's own parameters (the transports declare theirs)."""
     return (
-        Parameter("transport", str, "convolution", "convolution: the paper's layered FFTs; exact: the direct sum "
-                  "(slow, a reference); hierarchical: Jensen & Buhler 2002.", choices=available_transports()),
+        Parameter("transport", str, "multiscale", "multiscale: near field summed directly, far field by 3-D FFTs "
+                  "(the exact sum's accuracy at any size); convolution: the paper's layered FFTs; exact: the direct "
+                  "sum (slow, a reference); hierarchical: Jensen & Buhler 2002.", choices=available_transports()),
         Parameter("irradiance_samples", int, 16, "Direction samples per surface point for area and environment "
                   "emitters (point, spot and directional lights are evaluated exactly).", low=1),
         Parameter("sample_density", float, 4.0, "Surface samples per layer cell: N = sample_density * area / cell^2 "

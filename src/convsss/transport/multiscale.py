@@ -55,16 +55,26 @@ SPECTRA = KernelCache()
 
 
 def core_width(profile):
-    """The profile's core width ``w`` in mm: the smallest radius, over the channels, where ``R_d`` falls to half its
-    peak (a profile with an infinite peak uses a quarter of its half-energy radius)."""
+    """The profile's core width ``w`` in mm: the smallest radius, over the channels where it is not zero, where
+    ``R_d`` falls to half its peak (a profile with an infinite peak uses a quarter of its half-energy radius; one
+    that is zero in every channel, 1 mm: it has nothing to resolve)."""
     peak = np.asarray(profile(0.0), dtype=np.float64)
-    if np.all(np.isfinite(peak)) and np.all(peak > 0):
-        w = float(np.min(profile.radius_below(0.5)))
+    live = peak > 0
+    if not live.any():
+        return 1.0
+    if np.all(np.isfinite(peak)):
+        w = float(np.min(np.asarray(profile.radius_below(0.5))[live]))
     else:
-        w = 0.25 * float(np.min(profile.radius_energy(0.5)))
+        w = 0.25 * float(np.min(np.asarray(profile.radius_energy(0.5))[live]))
     if not math.isfinite(w) or w <= 0:
-        raise ConvsssError("multiscale transport: the profile has no finite core width (is it zero?)")
+        raise ConvsssError("multiscale transport: the profile has no finite core width")
     return w
+
+
+def far_reach(profile):
+    """Per channel, the radius holding all but :data:`FAR_TAIL` of the profile's energy (0 where it is zero)."""
+    live = np.asarray(profile(0.0), dtype=np.float64) > 0
+    return np.where(live, np.asarray(profile.radius_energy(FAR_TAIL), dtype=np.float64), 0.0)
 
 
 @dataclass(frozen=True)
@@ -397,7 +407,7 @@ class MultiscaleTransport(Transport):
         h = self.scales.mesh
         lo = lo - self.scales.split
         shape = np.ceil((hi + self.scales.split - lo) / h).astype(np.int64) + 2
-        reach = np.asarray(self.profile.radius_energy(FAR_TAIL), dtype=np.float64)
+        reach = far_reach(self.profile)
         pad = np.minimum(shape - 1, math.ceil(float(reach.max()) / h))
         fft_shape = tuple(scipy.fft.next_fast_len(int(n + q), real=True) for n, q in zip(shape, pad))
         # The grid, its spectrum, the kernel's spectrum and the convolved field: 4 x 3 channels x 4 bytes a cell.
