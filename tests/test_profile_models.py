@@ -9,7 +9,7 @@ from convsss.errors import ConvsssError
 from convsss.fresnel import diffuse_transmittance, fresnel_moment, fresnel_reflectance
 from convsss.profiles import PROFILE_MODELS, BeamDiffusionProfile, BetterDipoleProfile, BurleyProfile
 from convsss.profiles.beam_diffusion import single_scattering
-from convsss.profiles.burley import burley_values
+from convsss.profiles.burley import burley_values, mean_radius
 from convsss.profiles.diffusion import boundary, point_source_exitance
 from convsss.profiles.models import albedo_from_reflectance, model_total, parse_profile_spec
 from convsss.profiles.optical import CORE
@@ -90,13 +90,14 @@ def test_profile_scales_with_the_mean_free_path(model):
     np.testing.assert_allclose(p2.total_reflectance, p1.total_reflectance, rtol=1e-12)
 
 
-def test_burley_has_the_beam_diffusion_total_and_its_closed_form_shape():
+def test_burley_has_the_beam_diffusion_total_and_mean_radius():
     pbd, cb = BeamDiffusionProfile(0.98, 0.02, 1.3), BurleyProfile(0.98, 0.02, 1.3)  # sigma_t' = 1
-    total = pbd.total_reflectance[0]
+    total, d = pbd.total_reflectance[0], 0.4 * mean_radius(BeamDiffusionProfile.curve(0.98, 1.3))
     r = np.array([0.1, 1.0, 10.0])
-    np.testing.assert_allclose(cb(r)[:, 0], burley_values(r, total, diffuse_transmittance(1.3) * total), rtol=1e-6)
+    np.testing.assert_allclose(cb(r)[:, 0], burley_values(r, total, d), rtol=1e-6)
     # its integral is A; the constant core keeps the energy of the 1/r peak within
     assert cb.total_reflectance[0] == pytest.approx(total, rel=1e-4)
+    assert mean_radius(BurleyProfile.curve(0.98, 1.3)) == pytest.approx(2.5 * d, rel=1e-3)
 
 
 @pytest.mark.parametrize("model", list(PROFILE_MODELS))

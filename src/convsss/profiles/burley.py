@@ -1,37 +1,36 @@
 """Christensen & Burley 2015, "Approximate Reflectance Profiles for Efficient Subsurface Scattering": a sum of two
-exponentials fitted to Monte Carlo simulations of a searchlight (a beam at normal incidence), single scattering
-included,
+exponentials fitted to Monte Carlo simulations of a searchlight (single scattering included),
 
-``R(r) = A s (e^{-s r/l} + e^{-s r/(3 l)}) / (8 pi l r)``,  whose integral ``∫ 2 pi r R dr`` is ``A``,
+``R(r) = A (e^{-r/d} + e^{-r/(3 d)}) / (8 pi d r)``,  with ``∫ 2 pi r R dr = A`` and mean radius
+``∫ r 2 pi r R dr / A = 10 d / 4``.
 
-with ``l`` the mean free path and the shape factor of their searchlight fit ``s = 1.85 - A + 7 |A - 0.8|^3``.
-Christensen and Burley parameterize by the surface albedo ``A`` itself; for a material given by its coefficients
-``A`` is photon beam diffusion's total reflectance (the package's model with single scattering,
-:mod:`convsss.profiles.beam_diffusion`), so the two differ in shape only. In the normalization of Eq. 1
-(:mod:`convsss.profiles`) the amplitude is that total; the shape factor takes the albedo actually leaving,
-``T_d(eta) A``. Optical units: ``l = 1/sigma_t'``.
+Christensen and Burley give ``d`` from a length and their fits of a shape factor to ``A``; for a material given by
+its coefficients the package takes both numbers from photon beam diffusion (:mod:`convsss.profiles.beam_diffusion`,
+the model with single scattering): ``A`` its total reflectance (already in the normalization of Eq. 1,
+:mod:`convsss.profiles`) and ``d = 0.4 <r>`` from its mean exit radius ``<r>``, so the two agree in energy and in
+reach and differ in shape only. Optical units (``sigma_t' = 1``).
 """
 
 import numpy as np
 
-from ..fresnel import diffuse_transmittance
 from .beam_diffusion import BeamDiffusionProfile
 from .optical import OpticalProfile
 
 
-def shape_factor(albedo):
-    """Christensen & Burley 2015's searchlight fit ``s = 1.85 - A + 7 |A - 0.8|^3``."""
-    return 1.85 - albedo + 7.0 * np.abs(albedo - 0.8) ** 3
+def burley_values(r, total, d):
+    """``R(r)`` per unit length^2 with integral ``total`` and shape length ``d`` (module docstring)."""
+    return total * (np.exp(-r / d) + np.exp(-r / (3.0 * d))) / (8.0 * np.pi * d * r)
 
 
-def burley_values(r, total, leaving):
-    """``R(r)`` per mfp^2 with integral ``total`` and shape factor of the albedo ``leaving`` (module docstring)."""
-    s = shape_factor(leaving)
-    return total * s * (np.exp(-s * r) + np.exp(-s * r / 3.0)) / (8.0 * np.pi * r)
+def mean_radius(curve):
+    """``∫ r 2 pi r R dr / ∫ 2 pi r R dr`` of an :class:`~convsss.profiles.optical.OpticalCurve`."""
+    r = np.exp(np.linspace(np.log(curve.r[0]), np.log(curve.end), 8 * len(curve.r)))
+    first = np.trapezoid(2.0 * np.pi * r**3 * curve(r), np.log(r))
+    return float(first / curve.total)
 
 
 class BurleyProfile(OpticalProfile):
-    """Christensen & Burley 2015 (module docstring), with photon beam diffusion's total reflectance.
+    """Christensen & Burley 2015 (module docstring), with photon beam diffusion's total and mean radius.
 
     Parameters
     ----------
@@ -45,5 +44,5 @@ class BurleyProfile(OpticalProfile):
 
     @classmethod
     def optical_values(cls, r, albedo, eta):
-        total = BeamDiffusionProfile.optical_total(albedo, eta)
-        return burley_values(r, total, diffuse_transmittance(eta) * total)
+        pbd = BeamDiffusionProfile.curve(float(albedo), float(eta))
+        return burley_values(r, pbd.total, 0.4 * mean_radius(pbd))

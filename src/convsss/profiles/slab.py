@@ -191,3 +191,65 @@ def slab_tally(albedo, eta, photons=1 << 20, seed=0):
         "lost": float(lost.sum()) / n,
         "depth_max": depth_max,
     }
+
+
+# ---- The same slab in Mitsuba's volpathmis, for checking the tally ----------------------------------------------
+
+def tally_albedo(material, occluder_mm=0.0, photons=1 << 18, seed=0):
+    """The slab's albedo at normal incidence per channel from the tally: ``F_r(eta, 1) + F_t(eta, 1) x`` (the escaped
+    flux per transmitted flux); with ``occluder_mm > 0``, only ``F_t(eta, 1) x`` for the flux that leaves beyond that
+    radius (what :func:`volpath_slab_albedo` reads under a black disk). Within a bin the exits count as uniform in
+    area."""
+    out = np.empty(3)
+    specular = float(fresnel_reflectance(material.eta, 1.0))
+    for c in range(3):
+        t = slab_tally(material.albedo_prime[c], material.eta, photons, seed)
+        weights = t["profile"] * np.pi * np.diff(t["edges"] ** 2) * diffuse_transmittance(material.eta)
+        if occluder_mm > 0:
+            r1 = occluder_mm * material.sigma_t_prime[c]
+            inside = np.interp(r1**2, t["edges"] ** 2, np.concatenate([[0.0], np.cumsum(weights)]))
+            out[c] = (1.0 - specular) * (t["escaped"] - inside)
+        else:
+            out[c] = specular + (1.0 - specular) * t["escaped"]
+    return out
+
+
+def volpath_slab_albedo(material, occluder_mm=0.0, spp=1 << 16, seed=0):
+    """Mitsuba ``volpathmis`` (Russian roulette off) on a flat box of ``material`` (a smooth dielectric boundary of
+    its ``eta``, 40 diffusion lengths wide, 20 deep, at least 200 and 100 mean free paths) under a uniform sky of
+    radiance 1: a radiance meter just above the centre looking straight down reads, by reciprocity, the albedo at
+    normal incidence; with ``occluder_mm > 0`` a black disk of that radius just above the meter hides the exits
+    within it (and the specular reflection).
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,)
+    """
+    from ..backend import load_mitsuba
+    from ..scene.materials import translucent
+
+    mi = load_mitsuba()
+    T = mi.ScalarTransform4f
+    mfp = float(np.max(material.mfp_mm))
+    reach = float(np.max(np.where(material.sigma_tr > 0, 1.0 / np.maximum(material.sigma_tr, 1e-300), np.inf)))
+    width = min(max(40.0 * reach, 200.0 * mfp), 2000.0 * mfp)
+    depth = 0.5 * width
+    box = translucent({"type": "cube", "to_world": T().translate([0, 0, -0.5 * depth]).scale(
+        [0.5 * width, 0.5 * width, 0.5 * depth])}, material, boundary="dielectric")
+    lift = 1e-4 * mfp
+    scene = {
+        "type": "scene",
+        "integrator": {"type": "volpathmis", "max_depth": -1, "rr_depth": 1 << 30},
+        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
+        "slab": box,
+        "meter": {"type": "radiancemeter", "origin": [0.0, 0.0, lift], "direction": [0.0, 0.0, -1.0],
+                  "film": {"type": "hdrfilm", "width": 1, "height": 1, "rfilter": {"type": "box"},
+                           "pixel_format": "rgb"},
+                  "sampler": {"type": "independent", "sample_count": int(spp)}},
+    }
+    if occluder_mm > 0:
+        scene["occluder"] = {"type": "disk", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb",
+                                                                                         "value": [0.0] * 3}},
+                             "to_world": T().translate([0.0, 0.0, 2.0 * lift]).scale(float(occluder_mm))}
+    image = mi.render(mi.load_dict(scene), seed=int(seed), spp=int(spp))
+    return np.array(image, dtype=np.float64).reshape(-1)[:3]
