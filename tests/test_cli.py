@@ -150,3 +150,14 @@ def test_profile_commands_refuse_bad_input_in_one_line(tmp_path):
     assert result.exit_code == 2 and "nothing to validate" in result.output
     result = runner.invoke(cli, ["profile", "plot", "milkk", "-o", str(tmp_path / "p.png")])
     assert result.exit_code == 2 and "unknown material 'milkk'" in result.output
+
+
+def test_profile_invert_round_trips_the_colour():
+    result = CliRunner().invoke(cli, ["profile", "invert", "--color", "0.8,0.5,0.3", "--mfp-mm", "2", "--model",
+                                      "better-dipole", "--json"])
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.output)
+    np.testing.assert_allclose(report["color"], [0.8, 0.5, 0.3], rtol=1e-8)
+    np.testing.assert_allclose(np.add(report["sigma_s_prime"], report["sigma_a"]), 0.5, rtol=1e-12)
+    bad = CliRunner().invoke(cli, ["profile", "invert", "--color", "0.8,0.5", "--mfp-mm", "2"])
+    assert bad.exit_code == 2 and "give one number or three" in bad.output

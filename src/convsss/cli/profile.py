@@ -173,3 +173,52 @@ def _draw_profiles(panels, path):
     for ax in axes[len(panels):]:
         ax.set_visible(False)
     figure.savefig(path, format="png", dpi=100)
+
+
+def _triple(text, name):
+    try:
+        values = [float(x) for x in str(text).split(",")]
+    except ValueError:
+        raise ConvsssError(f"{name}={text!r} is not allowed: give one number or three, R,G,B") from None
+    if len(values) not in (1, 3):
+        raise ConvsssError(f"{name}={text!r} is not allowed: give one number or three, R,G,B")
+    return values * 3 if len(values) == 1 else values
+
+
+@profile.command()
+@click.option("--color", required=True, metavar="R,G,B",
+              help="Total diffuse reflectance per channel (the surface colour, linear), e.g. 0.8,0.5,0.3.")
+@click.option("--mfp-mm", required=True, metavar="D|R,G,B",
+              help="Reduced mean free path 1/sigma_t' in mm, one number or one per channel.")
+@click.option("--eta", type=float, default=1.3, show_default=True, help="Relative index of refraction.")
+@click.option("--model", type=MODEL_CHOICE, default=None,
+              help="The profile the colour is meant for. [default: the renderer's default profile]")
+@click.option("--unit-mm", type=float, default=1.0, show_default=True,
+              help="mm per scene unit, for the Mitsuba medium parameters.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
+def invert(color, mfp_mm, eta, model, unit_mm, as_json):
+    """A material from its colour and mean free path (pbrt's reflectance + mfp, Cycles' colour + radius): the
+    sigma_s' and sigma_a (1/mm) whose MODEL profile has that total reflectance, and the Mitsuba homogeneous medium
+    (sigma_t, scale, albedo) that renders it.
+    """
+    from ..profiles.models import DEFAULT_PROFILE, material_from_color
+    from ..scene.materials import medium_parameters
+
+    model = model or DEFAULT_PROFILE
+    m = material_from_color(_triple(color, "color"), _triple(mfp_mm, "mfp_mm"), eta, model)
+    medium = medium_parameters(m, unit_mm)
+    report = {"model": model, "eta": m.eta, "color": m.profile(model).total_reflectance,
+              "sigma_s_prime": m.sigma_s_prime, "sigma_a": m.sigma_a, "albedo_prime": m.albedo_prime,
+              "medium": medium}
+    if as_json:
+        click.echo(json.dumps(json_ready(report), indent=1))
+        return
+
+    def show(values):
+        return ", ".join(f"{x:.6g}" for x in values)
+
+    click.echo(f"{model} profile, eta {m.eta:g}: total reflectance {show(report['color'])}")
+    click.echo(f"sigma_s' = {show(m.sigma_s_prime)} 1/mm")
+    click.echo(f"sigma_a  = {show(m.sigma_a)} 1/mm")
+    click.echo(f"Mitsuba homogeneous medium ({unit_mm:g} mm per unit): sigma_t = {show(medium['sigma_t'])}, "
+               f"scale = {medium['scale']:.6g}, albedo = {show(medium['albedo'])}")
