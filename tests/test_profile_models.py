@@ -14,6 +14,8 @@ from convsss.profiles.diffusion import boundary, point_source_exitance
 from convsss.profiles.models import albedo_from_reflectance, model_total, parse_profile_spec
 from convsss.profiles.optical import CORE
 
+pytestmark = pytest.mark.filterwarnings("ignore::scipy.integrate.IntegrationWarning")  # quad at 1e-8 on log r
+
 NEW = [BetterDipoleProfile, BeamDiffusionProfile, BurleyProfile]
 CASES = [((0.70, 0.0014, 1.3)), ((2.19, 0.0021, 1.5)), ((0.18, 0.061, 1.3)), ((0.88, 0.17, 1.0))]
 
@@ -132,3 +134,10 @@ def test_profile_spec(tmp_path):
                          ("pbd,dipole", "at most one"), ("=pbd", "no object name")]:
         with pytest.raises(ConvsssError, match=message):
             parse_profile_spec(bad)
+
+
+@pytest.mark.parametrize("model", NEW, ids=lambda m: m.model)
+def test_a_channel_that_does_not_scatter_returns_nothing(model):
+    p = model([1.0, 1.0, 0.0], [0.1, 0.1, 0.5], 1.33)  # blue: sigma_s' = 0
+    assert p.total_reflectance[2] == 0.0 and p.total_reflectance[0] > 0
+    assert np.all(p([0.0, 1.0, 10.0])[:, 2] == 0.0) and p.energy_within(5.0)[2] == 0.0

@@ -45,4 +45,6 @@ class BurleyProfile(OpticalProfile):
     @classmethod
     def optical_values(cls, r, albedo, eta):
         pbd = BeamDiffusionProfile.curve(float(albedo), float(eta))
+        if pbd.zero:  # alpha' = 0: nothing scatters, nothing comes back
+            return np.zeros_like(r)
         return burley_values(r, pbd.total, 0.4 * mean_radius(pbd))

@@ -38,6 +38,10 @@ class OpticalCurve:
     """One channel of a profile in optical units: ``R_opt`` on a radial grid, its cubic and cumulative energy."""
 
     def __init__(self, r, values):
+        self.zero = not np.any(values > 0)  # a channel that does not scatter (alpha' = 0) returns nothing
+        if self.zero:
+            self.r, self.values, self.end, self.total, self.core_value = r[:2], np.zeros(2), float(r[1]), 0.0, 0.0
+            return
         # End where the energy per unit log r, 2 pi r^2 R, has fallen below TAIL for good (both an exponential and
         # an r^-3 tail then hold less than about TAIL past the end) or the profile has underflowed.
         alive = np.flatnonzero((2.0 * np.pi * r * r * values > TAIL) & (values > 0))
@@ -63,12 +67,16 @@ class OpticalCurve:
 
     def __call__(self, r):
         r = np.asarray(r, dtype=np.float64)
+        if self.zero:
+            return np.zeros(r.shape)
         inside = r <= self.end
         held = np.clip(r, self.r[0], self.end)
         return np.where(r < self.r[0], self.core_value, np.where(inside, np.exp(self._log(np.log(held))), 0.0))
 
     def energy_within(self, radius):
         radius = np.asarray(radius, dtype=np.float64)
+        if self.zero:
+            return np.zeros(radius.shape)
         core = np.pi * np.minimum(radius, self.r[0]) ** 2 * self.core_value
         outer = np.interp(np.log(np.clip(radius, self.r[0], self.end)), np.log(self._energy_r),
                           self._energy - self._energy[0])
