@@ -90,7 +90,8 @@ def validate_material(material, models=tuple(PROFILE_MODELS), photons=1 << 19, s
             weight = slab["energy"][c] * ok
             rel = np.where(ok, average / np.where(ok, measured, 1.0) - 1.0, 0.0)
             errors.append(float(np.sum(weight * np.abs(rel)) / max(np.sum(weight), 1e-300)))
-        out["models"][model] = {"total": total, "total_error": total / slab["total"] - 1.0, "profile": per_bin,
+        ratio = np.divide(total, slab["total"], out=np.full(3, np.nan), where=slab["total"] > 0)  # 0/0: NaN
+        out["models"][model] = {"total": total, "total_error": ratio - 1.0, "profile": per_bin,
                                 "profile_error": np.array(errors)}
     return out
 
@@ -146,10 +147,11 @@ def summary(results, models, albedo_limit=0.5):
     """Per model: the worst and mean |total error| over channels with ``alpha' > albedo_limit`` and over the rest."""
     out = {}
     for m in models:
+        # a channel that scatters nothing has no total to err on (0/0): left out
         thick = [abs(r["models"][m]["total_error"][c]) for r in results for c in range(3)
-                 if r["albedo_prime"][c] > albedo_limit]
+                 if r["albedo_prime"][c] > albedo_limit and np.isfinite(r["models"][m]["total_error"][c])]
         thin = [abs(r["models"][m]["total_error"][c]) for r in results for c in range(3)
-                if r["albedo_prime"][c] <= albedo_limit]
+                if r["albedo_prime"][c] <= albedo_limit and np.isfinite(r["models"][m]["total_error"][c])]
         prof = [r["models"][m]["profile_error"][c] for r in results for c in range(3)
                 if r["albedo_prime"][c] > albedo_limit]
         out[m] = {"title": MODEL_TITLES[m],
