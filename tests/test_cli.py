@@ -122,3 +122,42 @@ def test_bad_outputs_fail_in_one_line_and_write_nothing(images, args, message):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], result.stderr
     assert "Traceback" not in result.output and _snapshot(images) == before
+
+
+def test_profile_validate_and_plot_write_their_files(tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "v"
+    result = runner.invoke(cli, ["profile", "validate", "marble", "--photons", "4000", "--model", "dipole",
+                                 "--model", "pbd", "-o", str(out), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    assert (out / "validate.md").is_file() and (out / "validate.json").is_file() and (out / "marble.png").is_file()
+    assert "| Marble | R |" in result.output and "pbd" in result.output
+    cached = sorted(p.name for p in (out / "cache").iterdir())
+    assert len(cached) == 3  # one tally per channel, reused by the next run
+    assert runner.invoke(cli, ["profile", "validate", "marble", "--photons", "4000", "-o", str(out),
+                               "--no-progress"]).exit_code == 0
+    assert sorted(p.name for p in (out / "cache").iterdir()) == cached
+    csv = tmp_path / "p.csv"
+    csv.write_text("r_mm,R,G,B\n0,1,1,1\n1,0.5,0.4,0.3\n2,0,0,0\n")
+    result = runner.invoke(cli, ["profile", "plot", "skin1", str(csv), "-o", str(tmp_path / "p.png")])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "p.png").stat().st_size > 0
+
+
+def test_profile_commands_refuse_bad_input_in_one_line(tmp_path):
+    runner = CliRunner()
+    result = runner.invoke(cli, ["profile", "validate", "-o", str(tmp_path / "v")])
+    assert result.exit_code == 2 and "nothing to validate" in result.output
+    result = runner.invoke(cli, ["profile", "plot", "milkk", "-o", str(tmp_path / "p.png")])
+    assert result.exit_code == 2 and "unknown material 'milkk'" in result.output
+
+
+def test_profile_invert_round_trips_the_colour():
+    result = CliRunner().invoke(cli, ["profile", "invert", "--color", "0.8,0.5,0.3", "--mfp-mm", "2", "--model",
+                                      "better-dipole", "--json"])
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.output)
+    np.testing.assert_allclose(report["color"], [0.8, 0.5, 0.3], rtol=1e-8)
+    np.testing.assert_allclose(np.add(report["sigma_s_prime"], report["sigma_a"]), 0.5, rtol=1e-12)
+    bad = CliRunner().invoke(cli, ["profile", "invert", "--color", "0.8,0.5", "--mfp-mm", "2"])
+    assert bad.exit_code == 2 and "give one number or three" in bad.output

@@ -6,6 +6,8 @@ ray leaving the object towards ``w_o`` equals that of a ray arriving from ``w_o`
 ``F_t(eta, w_i)`` of paper Eq. 2 and ``F_t(eta, w_o)`` of Eq. 1 and 7.
 """
 
+from functools import cache
+
 import numpy as np
 
 from .errors import ConvsssError
@@ -84,3 +86,49 @@ def diffuse_fresnel_reflectance(eta):
     """
     eta = check_eta(eta)
     return -1.4399 / eta**2 + 0.7099 / eta + 0.6681 + 0.0636 * eta
+
+
+@cache
+def _gauss_legendre(n):
+    return np.polynomial.legendre.leggauss(n)
+
+
+@cache
+def fresnel_moment(eta, n, pieces=16, nodes=48):
+    """``C_n = ∫_0^1 F_r(eta, mu) mu^n dmu``: the n-th angular moment of the Fresnel reflectance (d'Eon 2012, "A
+    better dipole"; pbrt's ``FresnelMoment`` fits), by composite Gauss–Legendre quadrature, exact below the critical
+    angle when ``eta < 1`` (total internal reflection) and in a variable that smooths the kink there.
+
+    For light *inside* an object of relative index ``eta``, the boundary is seen with the relative index ``1/eta``.
+
+    Parameters
+    ----------
+    eta : float
+        Relative index of the far side over the near side (> 0).
+    n : int
+        The moment (0, 1, 2, ...).
+
+    Returns
+    -------
+    float
+    """
+    eta = check_eta(eta)
+    x, w = _gauss_legendre(nodes)
+    # Below the critical cosine mu_c (eta < 1) F_r = 1; above it F_r has a square-root kink at mu_c, smoothed by
+    # mu = mu_c + (1 - mu_c) v^2 (for eta >= 1, mu_c = 0 and the map is harmless).
+    mu_c = float(np.sqrt(1.0 - eta * eta)) if eta < 1.0 else 0.0
+    total = mu_c ** (n + 1) / (n + 1)
+    edges = np.linspace(0.0, 1.0, pieces + 1)
+    for a, b in zip(edges[:-1], edges[1:]):
+        v = 0.5 * (b - a) * x + 0.5 * (a + b)
+        mu = mu_c + (1.0 - mu_c) * v * v
+        jacobian = 2.0 * (1.0 - mu_c) * v
+        total += 0.5 * (b - a) * float(np.sum(w * fresnel_reflectance(eta, mu) * mu**n * jacobian))
+    return total
+
+
+def diffuse_transmittance(eta):
+    """``T_d = (1/pi) ∫ F_t(eta, w) cos dw = 1 - 2 C_1(eta)`` over the outer hemisphere: the fraction of a uniform
+    radiance outside that enters the object (through Eq. 2), and, by reciprocity, the fraction of ``M`` that Eq. 7's
+    ``(1/pi) F_t(eta, w_o) M`` carries out of it."""
+    return 1.0 - 2.0 * fresnel_moment(float(eta), 1)

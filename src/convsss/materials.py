@@ -21,7 +21,7 @@ import numpy as np
 
 from .errors import ConvsssError
 from .fresnel import check_eta
-from .profiles import CHANNELS, DipoleProfile
+from .profiles import CHANNELS
 
 #: Reduced albedo below which a channel is not optically thick enough for the diffusion approximation.
 THIN_ALBEDO = 0.5
@@ -118,9 +118,20 @@ class Material:
         with np.errstate(divide="ignore"):
             return 1.0 / self.sigma_tr
 
-    def profile(self):
-        """The classic dipole profile of this material (Jensen et al. 2001)."""
-        return DipoleProfile(self.sigma_s_prime, self.sigma_a, self.eta)
+    def profile(self, model="dipole"):
+        """The profile of this material by ``model`` (:data:`~convsss.profiles.PROFILE_MODELS`): by default the
+        classic dipole (Jensen et al. 2001), the paper's."""
+        from .profiles import model_profile
+
+        return model_profile(model, self)
+
+    @classmethod
+    def from_color(cls, color, mfp_mm, eta=1.3, model=None, name="custom"):
+        """The material whose ``model`` profile has total reflectance ``color`` (per channel) and reduced mean free
+        path ``mfp_mm``: :func:`convsss.profiles.models.material_from_color`."""
+        from .profiles import material_from_color
+
+        return material_from_color(color, mfp_mm, eta, model, name)
 
     @property
     def total_reflectance(self):

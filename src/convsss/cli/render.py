@@ -83,15 +83,16 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
     quick = scene_file is None
     defaults = {"specular": "phong"} if quick else {}
     render_params(integrator, defaults)  # bad values fail before anything is loaded
-    profile = integrator["profile"]
-    if profile:
-        from ..profiles import TabulatedProfile
+    from ..profiles import TabulatedProfile
+    from ..profiles.models import profile_files
 
-        TabulatedProfile.from_csv(profile)
+    profiles = profile_files(integrator["profile"] or "")
+    for csv in profiles:
+        TabulatedProfile.from_csv(csv)
     stem = output_stem(output)
     exr, png = stem.with_suffix(".exr"), stem.with_suffix(".png")
     check_outputs([exr, png, *([stats_path] if stats_path else [])],
-                  [*source_inputs(scene_file, mesh), *([profile] if profile else [])])
+                  [*source_inputs(scene_file, mesh), *profiles])
 
     from ..backend import load_mitsuba
 

@@ -115,6 +115,13 @@ def _collect_inputs(path, search, defaults, found):
             defaults.setdefault(element.get("name"), element.get("value", ""))
         elif element.tag == "path":
             search.insert(0, _resolve(value(element, "value"), path.parent, search))
+        elif element.tag == "string" and element.get("name") == "profile":
+            from ..profiles.models import PROFILE_MODELS
+
+            for entry in value(element, "value").split(","):  # model names and CSV files, per object or for all
+                spec = entry.rpartition("=")[2].strip()
+                if spec and spec not in PROFILE_MODELS:
+                    found.append(_resolve(spec, path.parent, search))
         elif element.tag == "string" and element.get("name") in FILE_PROPERTIES:
             found.append(_resolve(value(element, "value"), path.parent, search))
         elif element.get("filename"):

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import ConvsssError
 from ..materials import Material
-from ..profiles import TabulatedProfile
+from ..profiles.models import PROFILE_MODELS, parse_profile_spec, resolve_profile
 from .irradiance import area_scale, sample_surface
 
 #: Mitsuba class names of the boundaries a translucent object may have.
@@ -55,7 +55,7 @@ class TranslucentObject:
     name : str                   the shape's id; ``instance/shape`` for an instanced one
     material : Material          coefficients in 1/mm, ``eta`` of the boundary
     boundary : str               ``null``, ``dielectric`` or ``roughdielectric``
-    profile : Profile            the dipole of ``material``, or the user's tabulated profile
+    profile : Profile            the object's profile: a model of ``material`` or the user's tabulated profile
     shape_index : int            the shape's index in Mitsuba's registry (what ``si.shape`` holds per lane)
     instance_index : int         the instance's index in that registry (what ``si.instance`` holds), 0 if none
     to_world : (4, 4) array      the instance's transform (scene units), the identity for a plain shape
@@ -339,14 +339,18 @@ def world_area(shape, to_world):
     return float(np.sum(area.numpy(), dtype=np.float64))
 
 
-def find_translucent_objects(mi, scene, unit_mm=1.0, profile_csv=""):
+def find_translucent_objects(mi, scene, unit_mm=1.0, profile=""):
     """Every translucent shape of ``scene`` as a :class:`TranslucentObject`; a one-line error when there is none.
 
-    Each instance of a shapegroup that holds a translucent shape gives an object of its own.
-    Raises :class:`~convsss.errors.ConvsssError` for a shape whose interior medium is not homogeneous or has varying
-    coefficients, a translucent shape with another BSDF, and a boundary with ``eta < 1``.
+    ``profile`` is the renderer's ``profile`` parameter (:func:`~convsss.profiles.models.parse_profile_spec`): a
+    model or CSV for every object, or per object by its name (the shape's id; ``instance/shape`` for an instance,
+    whose instance id alone also selects it). Each instance of a shapegroup that holds a translucent shape gives an
+    object of its own. Raises :class:`~convsss.errors.ConvsssError` for a shape whose interior medium is not
+    homogeneous or has varying coefficients, a translucent shape with another BSDF, a boundary with ``eta < 1``, and
+    a profile entry naming no translucent object.
     """
-    user_profile = TabulatedProfile.from_csv(profile_csv) if profile_csv else None
+    default_spec, per_object = parse_profile_spec(profile)
+    tables = {}  # one TabulatedProfile per CSV file
     objects = []
     surfaces = {}  # per shape: its instances share its mesh, checked once
     for name, shape, instance in scene_surfaces(mi, scene):
@@ -362,8 +366,11 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile_csv=""):
         if index not in surfaces:
             surfaces[index] = _surface(mi, shape, name)
         to_world = instance_to_world(mi, instance)
+        spec = per_object.get(name, per_object.get(name.split("/")[0], default_spec))
+        if spec not in PROFILE_MODELS and spec not in tables:
+            tables[spec] = resolve_profile(spec, mat)
         obj = TranslucentObject(shape=shape, name=name, material=mat, boundary=boundary,
-                                profile=user_profile if user_profile is not None else mat.profile(),
+                                profile=tables.get(spec) or resolve_profile(spec, mat),
                                 shape_index=index, instance_index=0 if instance is None else shape_index(mi, instance),
                                 to_world=to_world, orientation=surfaces[index][0], closed=surfaces[index][1],
                                 bbox_mm=world_bbox(shape, to_world) * unit_mm,
@@ -375,4 +382,9 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile_csv=""):
     if not objects:
         raise ConvsssError("the scene has no translucent shape: give a shape an interior 'homogeneous' medium and a "
                            "null, dielectric or roughdielectric BSDF")
+    names = {o.name for o in objects} | {o.name.split("/")[0] for o in objects}
+    unknown = sorted(set(per_object) - names)
+    if unknown:
+        raise ConvsssError(f"profile entry {unknown[0]!r}={per_object[unknown[0]]!r} names no translucent object; the "
+                           f"translucent objects are: {', '.join(o.name for o in objects)}")
     return objects

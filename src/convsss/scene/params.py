@@ -6,10 +6,9 @@ a bad value gets the same one-line :class:`~convsss.errors.ConvsssError` everywh
 convolution, ``epsilon`` of the hierarchical method): every declaration has one default, stated once.
 """
 
-from pathlib import Path
-
 from ..errors import ConvsssError
 from ..parameters import Parameter, check_parameters
+from ..profiles.models import DEFAULT_PROFILE, parse_profile_spec
 
 SPECULARS = ("bsdf", "phong", "none")
 
@@ -40,8 +39,11 @@ def render_parameters():
         Parameter("rr_depth", int, 5, "Depth from which Russian roulette may end paths.", low=1),
         Parameter("unit_mm", float, 1.0, "How many mm one scene unit is (scene coefficients are per scene unit).",
                   low=0.0, low_open=True),
-        Parameter("profile", str, "", "CSV file r_mm, R, G, B of a user-defined radial profile that replaces the "
-                  "dipole (empty: the dipole)."),
+        Parameter("profile", str, "", "Diffusion profile per translucent object: a model (dipole: Jensen et al. "
+                  "2001, the paper's; better-dipole: d'Eon 2012; pbd: photon beam diffusion with single scattering, "
+                  "Habel et al. 2013; burley: Christensen & Burley 2015) or a CSV file r_mm, R, G, B, for every "
+                  "object, or per object by shape id: 'bunny=pbd,dragon=skin.csv' (an entry without 'name=' sets "
+                  f"the others). Empty: {DEFAULT_PROFILE}."),
     )
 
 
@@ -97,9 +99,7 @@ class RenderParams:
                                           "the convsss integrator")
         if self._renderer["max_depth"] == 0:
             raise ConvsssError("max_depth=0 is not allowed: it must be -1 (unbounded) or >= 1")
-        profile = self._renderer["profile"]
-        if profile and not Path(profile).is_file():
-            raise ConvsssError(f"profile file {profile!r} does not exist (a CSV with columns r_mm, R, G, B)")
+        parse_profile_spec(self._renderer["profile"])
         own = {p.name: p for p in self.transport_class().parameters if p.exposed}
         self._options = {k: (own.get(k) or declared[k]).check(v) for k, v in values.items() if k in declared}
 

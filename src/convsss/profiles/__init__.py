@@ -9,8 +9,22 @@ dimensionless. Every profile answers the same questions, which size the convolut
 - ``radius_below(t)`` -> smallest r with ``R_d(r) <= t R_d(0)`` (the paper's threshold distance ``d_t``, Eq. 8);
 - ``radius_energy(f)`` -> smallest r that holds all but a fraction ``f`` of the total.
 
-Two profiles: the classic dipole of Jensen et al. 2001 (the paper's choice) and a tabulated profile given by the
-user (the paper's "arbitrary diffusion profiles").
+Models (:data:`PROFILE_MODELS`, chosen per object by the renderer's ``profile`` parameter): the classic dipole of
+Jensen et al. 2001 (the paper's choice, here), the better dipole (d'Eon 2012, :mod:`.better_dipole`), photon beam
+diffusion with single scattering (Habel et al. 2013, :mod:`.beam_diffusion`), Christensen & Burley 2015
+(:mod:`.burley`), and a tabulated profile given by the user (the paper's "arbitrary diffusion profiles").
+:mod:`.slab` is their ground truth: a light tracer of the path-traced semi-infinite slab.
+
+Normalization (the one statement for every model). The renderer computes paper Eq. 2,
+``E = ∫ F_t(eta, w_i) L_i cos dw_i`` (the flux that enters), Eq. 1, ``M(x_o) = ∫ R_d(|x_o - x_i|) E(x_i) dA``, and
+Eq. 7, ``L_o = (1/pi) F_t(eta, w_o) M``. The exitance that Eq. 7 sends out is ``∫ L_o cos dw_o = T_d(eta) M`` with
+``T_d = 1 - 2 ∫_0^1 F_r(eta, mu) mu dmu`` (:func:`~convsss.fresnel.diffuse_transmittance`). So a model whose physics
+gives the exitance ``M_phys(r)`` that leaves the surface per unit flux that entered (the better dipole's and photon
+beam diffusion's ``c_phi phi + c_E E_n``, Christensen–Burley's fit, the Monte Carlo tally) enters Eq. 1 as
+``R_d(r) = M_phys(r) / T_d(eta)``: energy is conserved through Eq. 2, 1 and 7, and ``total_reflectance`` is the
+slab's albedo over ``T_d``. pbrt writes the same BSSRDF as ``(1 - F_r(cos_o)) S_p(r) S_w(w_i)`` with
+``S_w = (1 - F_r(cos_i)) / (pi c)``, ``c = 1 - 2 C_1``: the ``1/c`` there is our ``1/T_d`` moved to the entry side.
+The classic dipole keeps the paper's ``R_d`` (the flux ``E_n`` alone, with ``alpha'``), unchanged.
 """
 
 import csv
@@ -19,8 +33,8 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from .errors import ConvsssError
-from .fresnel import diffuse_fresnel_reflectance
+from ..errors import ConvsssError
+from ..fresnel import diffuse_fresnel_reflectance
 
 CHANNELS = "RGB"
 
@@ -313,3 +327,21 @@ class TabulatedProfile(Profile):
     @property
     def total_reflectance(self):
         return self._energy[-1].copy()
+
+
+# The models register here (they import the base classes above).
+from .beam_diffusion import BeamDiffusionProfile  # noqa: E402
+from .better_dipole import BetterDipoleProfile  # noqa: E402
+from .burley import BurleyProfile  # noqa: E402
+from .models import (  # noqa: E402
+    DEFAULT_PROFILE,
+    PROFILE_MODELS,
+    material_from_color,
+    model_profile,
+    parse_profile_spec,
+    resolve_profile,
+)
+
+__all__ = ["CHANNELS", "DEFAULT_PROFILE", "PROFILE_MODELS", "BeamDiffusionProfile", "BetterDipoleProfile",
+           "BurleyProfile", "DipoleProfile", "Profile", "TabulatedProfile", "material_from_color", "model_profile",
+           "parse_profile_spec", "resolve_profile"]

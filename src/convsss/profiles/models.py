@@ -1,0 +1,177 @@
+"""The profile models by name, what the renderer's ``profile`` parameter accepts, and a material from a colour.
+
+A profile is chosen per translucent object: ``profile`` is a model name (:data:`PROFILE_MODELS`) or a CSV file of
+a tabulated profile, for every object, or per object by the shape's id: ``"pbd"``, ``"bunny=pbd,dragon=my.csv"``,
+``"better-dipole,bunny=dipole"`` (an entry without ``name=`` sets the rest).
+"""
+
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..errors import ConvsssError
+from ..fresnel import check_eta
+from . import CHANNELS, DipoleProfile, TabulatedProfile
+from .beam_diffusion import BeamDiffusionProfile
+from .better_dipole import BetterDipoleProfile
+from .burley import BurleyProfile
+
+#: Every model: the paper's classic dipole and the three that match volumetric ground truth better.
+PROFILE_MODELS = {
+    "dipole": DipoleProfile,
+    "better-dipole": BetterDipoleProfile,
+    "pbd": BeamDiffusionProfile,
+    "burley": BurleyProfile,
+}
+#: The renderer's default, chosen by measurement (docs/benchmarks.md, "Profiles against a path-traced slab").
+DEFAULT_PROFILE = "dipole"
+#: What each model is, in words (help texts, plots).
+MODEL_TITLES = {
+    "dipole": "classic dipole (Jensen et al. 2001)",
+    "better-dipole": "better dipole (d'Eon 2012)",
+    "pbd": "photon beam diffusion + single scattering (Habel et al. 2013)",
+    "burley": "Christensen & Burley 2015",
+}
+
+
+def check_model(name):
+    """``name`` if it is a model of :data:`PROFILE_MODELS`, else a one-line error listing them."""
+    if name not in PROFILE_MODELS:
+        raise ConvsssError(f"profile model {name!r} is not allowed: choose one of {', '.join(PROFILE_MODELS)} "
+                           "(or a CSV file r_mm, R, G, B)")
+    return name
+
+
+def is_model(spec):
+    return spec in PROFILE_MODELS
+
+
+def model_profile(model, material):
+    """The profile of ``material`` (a :class:`~convsss.materials.Material`) by the model called ``model``."""
+    return PROFILE_MODELS[check_model(model)](material.sigma_s_prime, material.sigma_a, material.eta)
+
+
+def parse_profile_spec(text):
+    """``(default, {object name: spec})`` from the ``profile`` parameter (module docstring); ``default`` is
+    :data:`DEFAULT_PROFILE` when no entry without a name is given. Each spec is a model name or a CSV path, checked.
+    """
+    default, per_object = DEFAULT_PROFILE, {}
+    entries = [e.strip() for e in str(text).split(",") if e.strip()]
+    bare = [e for e in entries if "=" not in e]
+    if len(bare) > 1:
+        raise ConvsssError(f"profile={text!r} is not allowed: give one profile for every object and at most one "
+                           f"per object name (name=profile), got {len(bare)} without a name")
+    for entry in entries:
+        name, _, spec = entry.rpartition("=")
+        name, spec = name.strip(), spec.strip()
+        _check_spec(spec)
+        if "=" in entry:
+            if not name:
+                raise ConvsssError(f"profile entry {entry!r} has no object name before '='")
+            per_object[name] = spec
+        else:
+            default = spec
+    return default, per_object
+
+
+def _check_spec(spec):
+    if is_model(spec):
+        return
+    if spec.lower().endswith(".csv") or Path(spec).suffix:
+        if not Path(spec).is_file():
+            raise ConvsssError(f"profile file {spec!r} does not exist (a CSV with columns r_mm, R, G, B)")
+        return
+    check_model(spec)
+
+
+def profile_files(text):
+    """The CSV files named by a ``profile`` parameter (inputs a command must not overwrite)."""
+    default, per_object = parse_profile_spec(text)
+    return [Path(s) for s in [default, *per_object.values()] if not is_model(s)]
+
+
+def resolve_profile(spec, material):
+    """The :class:`~convsss.profiles.Profile` for ``spec`` (a model name or a CSV path) and ``material``."""
+    if is_model(spec):
+        return model_profile(spec, material)
+    return TabulatedProfile.from_csv(spec)
+
+
+# ---- Materials by colour and distance ---------------------------------------------------------------------------
+
+def model_total(model, albedo, eta):
+    """Total reflectance (normalization of Eq. 1) of ``model`` for reduced albedo ``albedo`` at index ``eta``; it
+    does not depend on the mean free path."""
+    cls = PROFILE_MODELS[check_model(model)]
+    if cls is DipoleProfile:
+        return float(DipoleProfile(albedo, 1.0 - albedo, eta).total_reflectance[0])
+    return cls.optical_total(float(albedo), float(eta))
+
+
+#: Reduced albedos searched when inverting a colour.
+ALBEDO_RANGE = (1e-6, 1.0)
+
+
+def albedo_from_reflectance(model, reflectance, eta):
+    """Per channel, the reduced albedo ``alpha'`` whose total reflectance under ``model`` is ``reflectance``.
+
+    Parameters
+    ----------
+    model : str
+        A model of :data:`PROFILE_MODELS`.
+    reflectance : array_like, shape (3,) or ()
+        Target total reflectance (the "surface colour") per channel.
+    eta : float
+        Relative index of the boundary.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,)
+    """
+    eta = check_eta(eta)
+    target = np.broadcast_to(np.asarray(reflectance, dtype=np.float64), (3,))
+    low, high = ALBEDO_RANGE
+    top = model_total(model, high, eta)
+    out = np.empty(3)
+    for c, value in enumerate(target):
+        if not np.isfinite(value) or value <= 0 or value >= top:
+            raise ConvsssError(f"colour {float(value)!r} in channel {CHANNELS[c]} is not reachable by the {model} "
+                               f"profile at eta={eta:g}: it must lie in (0, {top:.4f})")
+        if value <= model_total(model, low, eta):
+            out[c] = low
+            continue
+        out[c] = brentq(lambda a, v=value: model_total(model, a, eta) - v, low, high, xtol=1e-12, rtol=1e-10)
+    return out
+
+
+def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom"):
+    """A :class:`~convsss.materials.Material` whose ``model`` profile has total reflectance ``color`` and whose
+    reduced mean free path ``1/sigma_t'`` is ``mfp_mm`` (pbrt's ``reflectance`` + ``mfp``, Cycles' colour + radius).
+
+    ``sigma_s' = alpha' / mfp`` and ``sigma_a = (1 - alpha') / mfp`` with ``alpha'`` from
+    :func:`albedo_from_reflectance`.
+
+    Parameters
+    ----------
+    color : array_like, shape (3,) or ()
+        Total reflectance per channel, in (0, the model's reflectance at alpha' = 1).
+    mfp_mm : array_like, shape (3,) or ()
+        Reduced mean free path per channel, mm (> 0).
+    eta : float
+        Relative index of the boundary.
+    model : str, optional
+        The profile model the colour is meant for (default: :data:`DEFAULT_PROFILE`).
+
+    Returns
+    -------
+    Material
+    """
+    from ..materials import Material
+
+    model = check_model(model or DEFAULT_PROFILE)
+    mfp = np.broadcast_to(np.asarray(mfp_mm, dtype=np.float64), (3,))
+    if not np.all(np.isfinite(mfp)) or np.any(mfp <= 0):
+        raise ConvsssError(f"mfp_mm={np.asarray(mfp_mm).tolist()} is not allowed: it must be finite and > 0 (mm)")
+    albedo = albedo_from_reflectance(model, color, eta)
+    return Material.from_reduced(albedo / mfp, (1.0 - albedo) / mfp, eta, name)

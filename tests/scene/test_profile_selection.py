@@ -1,0 +1,42 @@
+"""The profile chosen per translucent object by the integrator's ``profile`` parameter."""
+
+import pytest
+
+import convsss
+from convsss.errors import ConvsssError
+from convsss.profiles import BeamDiffusionProfile, BurleyProfile, DipoleProfile, TabulatedProfile
+from convsss.scene.materials import translucent
+from convsss.scene.objects import find_translucent_objects
+
+
+@pytest.fixture(scope="module")
+def two_spheres(mi):
+    T = mi.ScalarTransform4f
+    scene = {"type": "scene"}
+    for name, x, preset in (("milk", -3.0, "wholemilk"), ("skin", 3.0, "skin1")):
+        shape = {"type": "sphere", "radius": 1.0, "to_world": T().translate([x, 0, 0])}
+        scene[name] = translucent(shape, convsss.material(preset), boundary="null")
+    return mi.load_dict(scene)
+
+
+def _profiles(mi, scene, spec):
+    return {o.name: o.profile for o in find_translucent_objects(mi, scene, 1.0, spec)}
+
+
+def test_one_model_for_every_object_and_per_object_choices(mi, two_spheres, tmp_path):
+    assert all(isinstance(p, BeamDiffusionProfile) for p in _profiles(mi, two_spheres, "pbd").values())
+    chosen = _profiles(mi, two_spheres, "skin=burley")
+    assert isinstance(chosen["skin"], BurleyProfile) and isinstance(chosen["milk"], DipoleProfile)
+    csv = tmp_path / "flat.csv"
+    csv.write_text("r_mm,R,G,B\n0,0.1,0.1,0.1\n2,0,0,0\n")
+    chosen = _profiles(mi, two_spheres, f"pbd,milk={csv}")
+    assert isinstance(chosen["milk"], TabulatedProfile) and isinstance(chosen["skin"], BeamDiffusionProfile)
+    # each object's model profile is of its own material
+    skin = chosen["skin"]
+    assert skin.sigma_s_prime.tolist() == pytest.approx(convsss.material("skin1").sigma_s_prime.tolist())
+
+
+def test_an_entry_for_no_object_is_refused(mi, two_spheres):
+    with pytest.raises(ConvsssError, match="profile entry 'bunny'='pbd' names no translucent object; the translucent "
+                                           "objects are: milk, skin"):
+        find_translucent_objects(mi, two_spheres, 1.0, "bunny=pbd")
