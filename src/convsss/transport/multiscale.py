@@ -200,6 +200,13 @@ def cluster(position, normal, area, flux, size, origin):
     return np.ascontiguousarray(centre / norm[:, None]), np.ascontiguousarray(total)
 
 
+@numba.njit(inline="always")
+def _corner(c, fu, fv, fw):
+    """Corner ``c`` (0-7, bits ``di dj dm``) of a cell and its trilinear weight at the fractions ``fu, fv, fw``."""
+    di, dj, dm = c >> 2, (c >> 1) & 1, c & 1
+    return di, dj, dm, (fu if di else 1.0 - fu) * (fv if dj else 1.0 - fv) * (fw if dm else 1.0 - fw)
+
+
 @numba.njit(cache=True)
 def _deposit(view, flux, origin, h, grid):
     """Trilinear (cloud-in-cell) deposit of ``flux`` (C, 3) at ``view`` (C, 3) on ``grid`` (3, nx, ny, nz)."""
@@ -212,14 +219,10 @@ def _deposit(view, flux, origin, h, grid):
         j = min(max(int(np.floor(v)), 0), ny - 2)
         m = min(max(int(np.floor(w)), 0), nz - 2)
         fu, fv, fw = u - i, v - j, w - m
-        for di in range(2):
-            wu = fu if di else 1.0 - fu
-            for dj in range(2):
-                wv = fv if dj else 1.0 - fv
-                for dm in range(2):
-                    wt = wu * wv * (fw if dm else 1.0 - fw)
-                    for c in range(3):
-                        grid[c, i + di, j + dj, m + dm] += wt * flux[k, c]
+        for corner in range(8):
+            di, dj, dm, wt = _corner(corner, fu, fv, fw)
+            for c in range(3):
+                grid[c, i + di, j + dj, m + dm] += wt * flux[k, c]
 
 
 @numba.njit(parallel=True, cache=True)
@@ -232,14 +235,10 @@ def _interpolate(view, origin, h, field, out):
         w = min(max((view[k, 2] - origin[2]) / h, 0.0), nz - 1.0)
         i, j, m = min(int(u), nx - 2), min(int(v), ny - 2), min(int(w), nz - 2)
         fu, fv, fw = u - i, v - j, w - m
-        for di in range(2):
-            wu = fu if di else 1.0 - fu
-            for dj in range(2):
-                wv = fv if dj else 1.0 - fv
-                for dm in range(2):
-                    wt = wu * wv * (fw if dm else 1.0 - fw)
-                    for c in range(3):
-                        out[k, c] += wt * field[c, i + di, j + dj, m + dm]
+        for corner in range(8):
+            di, dj, dm, wt = _corner(corner, fu, fv, fw)
+            for c in range(3):
+                out[k, c] += wt * field[c, i + di, j + dj, m + dm]
 
 
 @numba.njit(cache=True)
@@ -339,7 +338,7 @@ def _sparse_interpolate(view, origin, size, dims, voxels, corner_index, corner_v
         found[k] = True
         fu, fv, fw = u - i, v - j, w - m
         for c in range(8):
-            wt = (fu if c >> 2 else 1.0 - fu) * (fv if (c >> 1) & 1 else 1.0 - fv) * (fw if c & 1 else 1.0 - fw)
+            wt = _corner(c, fu, fv, fw)[3]
             corner = corner_index[slot, c]
             for ch in range(3):
                 out[k, ch] += wt * corner_value[corner, ch]
