@@ -24,7 +24,8 @@ from ..memory import check_memory
 from ..timing import StageTimer
 from ..transport import make_transport
 from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
-from .irradiance import object_samples, sample_count
+from ..samples import IrradianceSamples
+from .irradiance import indirect_irradiance, object_samples, sample_count
 from .objects import find_translucent_objects
 from .params import RenderParams, plugin_parameters
 from .shading import Shader
@@ -90,13 +91,17 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         """Stages 1–3 for ``sensor``: translucent objects, their irradiance samples and transports."""
         p = self.params
         timer = StageTimer()
-        self._stage("samples")
-        with timer("samples"):
+
+        def stage(name):
+            self._stage(name)
+            return timer(name)
+
+        with stage("samples"):
             objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile)
             check_camera(sensor)
             frame = sensor_frame(sensor, p.unit_mm)
             seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
-        transports, per_object, shown, hidden = [], [], [], []
+        direct, cells, per_object, shown, hidden = [], [], [], [], []
         for k, (obj, (depths, from_behind)) in enumerate(zip(objects, seen)):
             seen_from_inside = from_behind == (obj.orientation > 0)  # against the outward normal
             if obj.closed and len(depths) and seen_from_inside.mean() > 0.5:
@@ -118,20 +123,72 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             check_memory(count * BYTES_PER_SAMPLE, f"{count} surface samples of {obj.name!r}",
                          "lower sample_density, or use downsample 0.5 or 0.25")
             self._check_irradiance_time(scene, count, obj.name)
-            samples = object_samples(scene, obj, count, p.irradiance_samples, p.unit_mm, _seed(seed), stream=k,
-                                     stage=lambda name: (self._stage(name), timer(name))[1])
-            self._stage("transport")
-            with timer("transport"):
-                transport = make_transport(p.transport, samples, obj.profile, frame=frame,
-                                           **self._transport_params(cell_full))
-            transports.append(transport)
-            per_object.append({**obj.summary(), "samples": len(samples), "cell_size_mm": cell,
-                               "pixel_footprint_mm": cell_full, "view_depth_mm": depth,
-                               "flux": samples.flux.sum(axis=0).tolist()})
+            direct.append(object_samples(scene, obj, count, p.irradiance_samples, p.unit_mm, _seed(seed), stream=k,
+                                         stage=stage))
+            cells.append(cell_full)
+            per_object.append({**obj.summary(), "samples": count, "cell_size_mm": cell, "pixel_footprint_mm": cell_full,
+                               "view_depth_mm": depth})
+        indirect, deferred, tracer = self._indirect(scene, shown, direct, _seed(seed), stage)
+
+        def build(k, irradiance):
+            samples = direct[k] if irradiance is None else IrradianceSamples(
+                direct[k].position, direct[k].area, irradiance, direct[k].normal)
+            with stage("transport"):
+                return make_transport(p.transport, samples, shown[k].profile, frame=frame,
+                                      **self._transport_params(cells[k])), samples
+
+        # Light that reached an object through or off another translucent object (or itself) needs the transports:
+        # they are built once from direct + indirect light off the rest of the scene, the recorded hits looked up in
+        # them, and an object that receives such light built again (one iteration: light that crossed between
+        # translucent objects twice is left out).
+        built = [build(k, None if indirect[k] is None else direct[k].irradiance + indirect[k])
+                 for k in range(len(shown))]
+        transports = [t for t, _ in built]
+        from_translucent = [None] * len(shown)
+        if any(deferred):
+            with stage("indirect"):
+                for k, records in enumerate(deferred):
+                    tags, values = tracer.resolve(transports, records)
+                    if len(tags):
+                        from_translucent[k] = np.stack([np.bincount(tags, values[:, c], minlength=len(direct[k]))
+                                                        for c in range(3)], axis=1)
+            for k, extra in enumerate(from_translucent):
+                if extra is not None and extra.any():
+                    built[k] = build(k, built[k][1].irradiance + np.maximum(extra, 0.0))
+                    transports[k] = built[k][0]
+        for k, (info, (_, samples)) in enumerate(zip(per_object, built)):
+            direct_flux = direct[k].flux.sum(axis=0)
+            total_flux = samples.flux.sum(axis=0)
+            info.update(samples=len(samples), flux=total_flux.tolist(), flux_direct=direct_flux.tolist(),
+                        flux_indirect=(total_flux - direct_flux).tolist(),
+                        flux_from_translucent=[0.0] * 3 if from_translucent[k] is None else
+                        (from_translucent[k] * samples.area[:, None]).sum(axis=0).tolist())
         self._shader = Shader(scene, shown, transports, p, stop=self.should_stop)
         self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object, "hidden": hidden,
                       "samples": int(sum(o["samples"] for o in per_object))}
         return self._shader
+
+    def _indirect(self, scene, objects, samples, seed, stage):
+        """Indirect irradiance (paper Eq. 2 after at least one bounce) at every object's samples, path traced with the
+        shader's path tracer before any transport exists: ``(indirect, deferred, tracer)``, ``indirect[k]`` (N, 3)
+        numpy or None (none asked for), ``deferred[k]`` the hits on translucent objects, to be looked up once their
+        transports exist (:meth:`Shader.resolve`)."""
+        p = self.params
+        none = [None] * len(objects), [[] for _ in objects], None
+        # Indirect light needs a path of at least 3 segments (camera, the object, a bounce, an emitter).
+        if p.indirect_samples == 0 or 0 < p.max_depth < 3 or not objects:
+            return none
+        tracer = Shader(scene, objects, [None] * len(objects), p, stop=self.should_stop)
+        indirect, deferred = [], []
+        with stage("indirect"):
+            for k, (obj, s) in enumerate(zip(objects, samples)):
+                position = mi.Point3f(*np.ascontiguousarray((s.position / p.unit_mm).T, dtype=np.float32))
+                normal = mi.Vector3f(*np.ascontiguousarray(s.normal.T, dtype=np.float32))
+                indirect.append(indirect_irradiance(tracer.incident, position, normal, obj.eta, p.indirect_samples,
+                                                    seed + 104729 * (k + 1), stop=self.should_stop))
+                deferred.append(tracer.deferred)
+                tracer.deferred = []
+        return indirect, deferred, tracer
 
     def _transport_params(self, cell_full):
         """The chosen transport's parameters, and the pixel footprint as its ``cell_size`` if it declares one."""
