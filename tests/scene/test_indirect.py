@@ -102,3 +102,29 @@ def test_sphere_in_a_closed_box_against_volpathmis(against_volpath):
     np.testing.assert_allclose(with_indirect, point, atol=0.03)
     share = point_reference / box_reference
     np.testing.assert_allclose(with_indirect, share * point + (1 - share) * glow, atol=0.01)
+
+
+def test_absurdly_many_indirect_paths_are_refused_before_they_start(mi, sphere_scene):
+    scene = mi.load_dict(sphere_scene(integrator={"indirect_samples": 1e7}))
+    with pytest.raises(convsss.ConvsssError, match=r"'object' needs .* indirect paths.* indirect_samples"):
+        scene.integrator().render(scene, scene.sensors()[0])
+
+
+def test_two_translucent_objects_light_each_other(mi, sphere_scene):
+    """A convex sphere alone gets no light from translucent objects; next to another, each gets some, and a second
+    pass changes less than the first."""
+    second = translucent({"type": "sphere", "radius": 2.0, "center": [4.5, 0.0, 0.0]}, convsss.material("skin1"),
+                         boundary="null")
+    alone = mi.load_dict(sphere_scene(res=32))
+    alone.integrator().render(alone, alone.sensors()[0])
+    stats = alone.integrator().stats
+    assert stats["objects"][0]["flux_from_translucent"] == [0.0, 0.0, 0.0] and stats["translucent_passes"] == []
+    for passes in (1, 2):
+        pair = mi.load_dict(sphere_scene(res=32, extra={"second": second}, integrator={"indirect_passes": passes}))
+        pair.integrator().render(pair, pair.sensors()[0])
+        stats = pair.integrator().stats
+        for obj in stats["objects"]:
+            assert np.all(np.array(obj["flux_from_translucent"]) > 0)
+            np.testing.assert_allclose(obj["flux"], np.add(obj["flux_direct"], obj["flux_indirect"]))
+        changes = [p["flux_change"] for p in stats["translucent_passes"]]
+        assert len(changes) == passes and changes == sorted(changes, reverse=True) and changes[-1] > 0

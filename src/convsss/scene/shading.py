@@ -73,7 +73,7 @@ class Shader:
         self.ctx_reflect = mi.BSDFContext()
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
         self.lookups = 0
-        #: Hits on objects without a transport, per :meth:`incident` call: ``(object, tag, points_mm, normals, weight)``.
+        #: Hits on objects without a transport: ``(object, tag, points_mm, normals, weight)`` per batch.
         self.deferred = []
         self._tags = self._weight = None
         #: Up to this many emitters, direct light samples each of them (else one chosen by the scene).
