@@ -90,9 +90,10 @@ def against_volpath(mi, object_mask):
 def test_sphere_in_a_closed_box_against_volpathmis(against_volpath):
     """The box's walls bring most of the light. Direct light alone is far too dark; with indirect light the ratio to
     volpathmis comes back to the profile's own bias measured without the box: within 3 % of its bias under the
-    same point light alone (the issue's goal), and within 1 % of the bias expected for the box's mix of light: the
+    same point light alone (the issue's goal), and within 2 % of the bias expected for the box's mix of light: the
     direct share ``s`` (volpathmis without the box over volpathmis in it) at the bias under the point light, the rest
-    at the bias under the uniform light of glowing black walls."""
+    at the bias under the uniform light of glowing black walls (the walls' light is not quite uniform: measured 0.7-1.1
+    % below it here, 0.2-0.9 % at 128 x 128; the light between the sphere and the walls alone is 5 % of the flux)."""
     direct_only, box_reference = against_volpath("box", indirect_samples=0)
     # 16 paths per sample: at 64x64 the sphere has 16k samples, and one path each leaves ~2 % of noise in the mean.
     with_indirect, _ = against_volpath("box", indirect_samples=16)
@@ -101,7 +102,7 @@ def test_sphere_in_a_closed_box_against_volpathmis(against_volpath):
     assert np.all(direct_only < 0.3)
     np.testing.assert_allclose(with_indirect, point, atol=0.03)
     share = point_reference / box_reference
-    np.testing.assert_allclose(with_indirect, share * point + (1 - share) * glow, atol=0.01)
+    np.testing.assert_allclose(with_indirect, share * point + (1 - share) * glow, atol=0.02)
 
 
 def test_absurdly_many_indirect_paths_are_refused_before_they_start(mi, sphere_scene):

@@ -233,7 +233,7 @@ def stratified_directions(points, owners, spacing, seed, strata=4):
     cells = strata * strata
     voxel = np.floor(points[owners] / spacing).astype(np.int64)
     key = (voxel[:, 0] * 73856093) ^ (voxel[:, 1] * 19349663) ^ (voxel[:, 2] * 83492791)  # collisions merge voxels
-    order = np.argsort(key, kind="stable")
+    order = np.argsort(key)
     sorted_key = key[order]
     start = np.r_[True, sorted_key[1:] != sorted_key[:-1]]
     rank = np.empty(len(owners), dtype=np.int64)
