@@ -5,8 +5,11 @@
 1. find the translucent objects (:mod:`.objects`);
 2. per object, sample its whole surface, ``N = sample_density * A / h^2`` points for a layer cell ``h`` (the pixel
    footprint at the object's depth divided by ``downsample``), so every cell column gets several samples, and
-   compute their irradiance (paper Eq. 2, :mod:`.irradiance`);
-3. build each object's transport (paper §4–5 for ``convolution``) in the camera's frame;
+   compute their irradiance (paper Eq. 2, :mod:`.irradiance`): direct light from every emitter, and indirect light
+   path traced into the scene from the samples (``indirect_samples`` paths per sample) with the shader's path
+   tracer, whose hits on translucent objects wait for their transports;
+3. build each object's transport (paper §4–5 for ``convolution``) in the camera's frame, look the waiting hits up
+   in them and build the transports of the objects they light again (``indirect_passes`` times);
 4. shade the camera rays (:mod:`.shading`) through Mitsuba's own render loop, so the film, its reconstruction
    filter, crop window, sampler and sample count behave as for any Mitsuba integrator.
 
@@ -21,10 +24,11 @@ import numpy as np
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
 from ..memory import check_memory
+from ..samples import IrradianceSamples
 from ..timing import StageTimer
 from ..transport import make_transport
 from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
-from .irradiance import object_samples, sample_count
+from .irradiance import indirect_irradiance, object_samples, sample_count
 from .objects import find_translucent_objects
 from .params import RenderParams, plugin_parameters
 from .shading import Shader
@@ -42,6 +46,8 @@ BYTES_PER_PATH = 600
 BYTES_PER_SAMPLE = 400
 #: Irradiance rays traced per second on the project's 2-core machine (bunny under a constant environment).
 RAYS_PER_SECOND = 5e6
+#: Bounces of an indirect path, for the time estimate (Russian roulette ends most of them within a few).
+INDIRECT_BOUNCES = 3
 #: A render whose irradiance alone would take longer than this is refused before it starts.
 MAX_IRRADIANCE_SECONDS = 600.0
 
@@ -90,13 +96,17 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         """Stages 1–3 for ``sensor``: translucent objects, their irradiance samples and transports."""
         p = self.params
         timer = StageTimer()
-        self._stage("samples")
-        with timer("samples"):
+
+        def stage(name):
+            self._stage(name)
+            return timer(name)
+
+        with stage("samples"):
             objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile)
             check_camera(sensor)
             frame = sensor_frame(sensor, p.unit_mm)
             seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
-        transports, per_object, shown, hidden = [], [], [], []
+        direct, cells, per_object, shown, hidden = [], [], [], [], []
         for k, (obj, (depths, from_behind)) in enumerate(zip(objects, seen)):
             seen_from_inside = from_behind == (obj.orientation > 0)  # against the outward normal
             if obj.closed and len(depths) and seen_from_inside.mean() > 0.5:
@@ -118,20 +128,85 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             check_memory(count * BYTES_PER_SAMPLE, f"{count} surface samples of {obj.name!r}",
                          "lower sample_density, or use downsample 0.5 or 0.25")
             self._check_irradiance_time(scene, count, obj.name)
-            samples = object_samples(scene, obj, count, p.irradiance_samples, p.unit_mm, _seed(seed), stream=k,
-                                     stage=lambda name: (self._stage(name), timer(name))[1])
-            self._stage("transport")
-            with timer("transport"):
-                transport = make_transport(p.transport, samples, obj.profile, frame=frame,
-                                           **self._transport_params(cell_full))
-            transports.append(transport)
-            per_object.append({**obj.summary(), "samples": len(samples), "cell_size_mm": cell,
-                               "pixel_footprint_mm": cell_full, "view_depth_mm": depth,
-                               "flux": samples.flux.sum(axis=0).tolist()})
+            direct.append(object_samples(scene, obj, count, p.irradiance_samples, p.unit_mm, _seed(seed), stream=k,
+                                         stage=stage))
+            cells.append(cell_full)
+            per_object.append({**obj.summary(), "samples": count, "cell_size_mm": cell, "pixel_footprint_mm": cell_full,
+                               "view_depth_mm": depth})
+        indirect, deferred, tracer = self._indirect(scene, shown, direct, _seed(seed), stage)
+        irradiance = [s.irradiance if e is None else s.irradiance + e for s, e in zip(direct, indirect)]
+
+        def build(k, extra=0.0):
+            s = direct[k]
+            samples = IrradianceSamples(s.position, s.area, irradiance[k] + extra, s.normal)
+            with stage("transport"):
+                return make_transport(p.transport, samples, shown[k].profile, frame=frame,
+                                      **self._transport_params(cells[k]))
+
+        transports, from_translucent, passes = self._translucent_passes(tracer, direct, irradiance, deferred, build,
+                                                                        stage)
+        for k, s in enumerate(direct):
+            total = s.flux.sum(axis=0) + ((irradiance[k] - s.irradiance + from_translucent[k])
+                                          * s.area[:, None]).sum(axis=0)
+            per_object[k].update(samples=len(s), flux=total.tolist(), flux_direct=s.flux.sum(axis=0).tolist(),
+                                 flux_indirect=(total - s.flux.sum(axis=0)).tolist(),
+                                 flux_from_translucent=(from_translucent[k] * s.area[:, None]).sum(axis=0).tolist())
         self._shader = Shader(scene, shown, transports, p, stop=self.should_stop)
         self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object, "hidden": hidden,
-                      "samples": int(sum(o["samples"] for o in per_object))}
+                      "samples": int(sum(o["samples"] for o in per_object)), "translucent_passes": passes}
         return self._shader
+
+    def _indirect(self, scene, objects, samples, seed, stage):
+        """Indirect irradiance (paper Eq. 2 after at least one bounce) at every object's samples, path traced with the
+        shader's path tracer before any transport exists: ``(indirect, deferred, tracer)``, ``indirect[k]`` (N, 3)
+        numpy or None (none asked for), ``deferred[k]`` the hits on translucent objects, to be looked up once their
+        transports exist (:meth:`Shader.resolve`)."""
+        p = self.params
+        none = [None] * len(objects), [[] for _ in objects], None
+        # Indirect light needs a path of at least 3 segments (camera, the object, a bounce, an emitter).
+        if p.indirect_samples == 0 or 0 < p.max_depth < 3 or not objects:
+            return none
+        tracer = Shader(scene, objects, [None] * len(objects), p, stop=self.should_stop)
+        indirect, deferred = [], []
+        with stage("indirect"):
+            for k, (obj, s) in enumerate(zip(objects, samples)):
+                position = mi.Point3f(*np.ascontiguousarray((s.position / p.unit_mm).T, dtype=np.float32))
+                normal = mi.Vector3f(*np.ascontiguousarray(s.normal.T, dtype=np.float32))
+                indirect.append(indirect_irradiance(tracer.incident, position, normal, s.area / p.unit_mm**2, obj.eta,
+                                                    p.indirect_samples, seed + 104729 * (k + 1),
+                                                    stop=self.should_stop))
+                deferred.append(tracer.deferred)
+                tracer.deferred = []
+        return indirect, deferred, tracer
+
+    def _translucent_passes(self, tracer, samples, irradiance, deferred, build, stage):
+        """Every object's transport, with the light that reached it through or off a translucent object (another, or
+        itself): ``(transports, from_translucent, passes)``, ``from_translucent[k]`` (N, 3) numpy irradiance and
+        ``passes`` one ``{"flux_change": ...}`` per pass (the largest change of an object's flux, relative to it).
+
+        That light needs the exitance of the objects it came from, which depends on it too: Jacobi passes. The
+        transports are built from ``irradiance`` (``build(k, extra)``); each of ``indirect_passes`` passes looks the
+        recorded hits ``deferred`` up in the last transports (paper Eq. 7) and builds those of the objects they
+        light again. One pass leaves out light that crossed between translucent objects twice.
+        """
+        transports = [build(k) for k in range(len(samples))]
+        light = [np.zeros_like(e) for e in irradiance]
+        passes = []
+        while any(deferred) and len(passes) < self.params.indirect_passes and not self.should_stop():
+            change = 0.0
+            with stage("indirect"):
+                for k, (s, records) in enumerate(zip(samples, deferred)):
+                    tags, values = tracer.resolve(transports, records)
+                    new = np.stack([np.bincount(tags, values[:, c], minlength=len(s)) for c in range(3)], axis=1)
+                    new = np.maximum(new, 0.0)
+                    moved = np.abs(((new - light[k]) * s.area[:, None]).sum(axis=0))
+                    flux = ((irradiance[k] + new) * s.area[:, None]).sum(axis=0)
+                    change = max(change, float(np.max(moved / np.maximum(flux, 1e-300))))
+                    light[k] = new
+            passes.append({"flux_change": change})
+            transports = [build(k, light[k]) if records else t
+                          for k, (t, records) in enumerate(zip(transports, deferred))]
+        return transports, light, passes
 
     def _transport_params(self, cell_full):
         """The chosen transport's parameters, and the pixel footprint as its ``cell_size`` if it declares one."""
@@ -142,14 +217,19 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
 
     def _check_irradiance_time(self, scene, count, name):
         """Refuse irradiance longer than ``MAX_IRRADIANCE_SECONDS``: ``count`` points x ``irradiance_samples``
-        directions x (one ray per area or environment emitter + one cosine-sampled ray)."""
+        directions x (one ray per area or environment emitter + one cosine-sampled ray), plus ``count`` x
+        ``indirect_samples`` paths of ``INDIRECT_BOUNCES`` bounces, each a ray and a shadow ray per emitter."""
+        p = self.params
         sampled = sum(not mi.has_flag(e.flags(), mi.EmitterFlags.Delta) for e in scene.emitters())
-        rays = count * self.params.irradiance_samples * (sampled + 1) if sampled else 0
+        direct = count * p.irradiance_samples * (sampled + 1) if sampled else 0
+        indirect = count * p.indirect_samples * INDIRECT_BOUNCES * (1 + len(scene.emitters()))
+        rays = direct + indirect
         if rays / RAYS_PER_SECOND > MAX_IRRADIANCE_SECONDS:
             raise ConvsssError(f"irradiance of {name!r} needs {rays:.3g} rays ({count} points x "
-                               f"{self.params.irradiance_samples} directions x {sampled + 1}), about "
-                               f"{rays / RAYS_PER_SECOND / 60:.0f} min at {RAYS_PER_SECOND:.0e} rays/s: lower "
-                               "irradiance_samples (16-64 is plenty) or sample_density")
+                               f"{p.irradiance_samples} directions x {sampled + 1} + {count} x {p.indirect_samples:g} "
+                               f"indirect paths), about {rays / RAYS_PER_SECOND / 60:.0f} min at "
+                               f"{RAYS_PER_SECOND:.0e} rays/s: lower irradiance_samples (16-64 is plenty), "
+                               "indirect_samples or sample_density")
 
     # --- Mitsuba's interface ------------------------------------------------------------------------------------------
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):

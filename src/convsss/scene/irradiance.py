@@ -18,6 +18,13 @@ summed over every emitter:
   heuristic) between each emitter's own sampling and cosine-weighted hemisphere sampling, so small lights and large
   environments are both well estimated.
 
+Indirect light, everything that reaches the point after at least one bounce (off opaque shapes, through and off
+translucent objects, emitters seen after a bounce), is the same integral estimated by cosine-weighted directions:
+``E_ind += F_t(eta, cos) pi L_ind(x_i, w) / P`` for ``P`` paths per point (pdf ``cos / pi``), with ``L_ind`` path
+traced by the caller's ``incident`` (the shader's path tracer, :meth:`convsss.scene.shading.Shader.incident`). Fewer
+paths than points (``P < 1``): a random fraction ``P`` of the points trace one path each, weighted by ``1/P``; the
+transport's blur averages the noise of neighbouring points (:func:`indirect_irradiance`).
+
 Everything is one batch of Dr.Jit arrays per chunk of points (no Python loop over points); the result is numpy.
 """
 
@@ -33,6 +40,10 @@ mi = load_mitsuba()
 
 #: Lanes (points x direction samples) traced at once; bounds memory to a few hundred MB.
 CHUNK_LANES = 1 << 22
+#: Indirect paths traced at once (a path's wavefront state is a few hundred bytes).
+CHUNK_PATHS = 1 << 19
+#: Indirect directions are stratified over DIRECTION_STRATA^2 cells across neighbouring points.
+DIRECTION_STRATA = 4
 
 
 def stratified_square(count, seed, stream=0):
@@ -189,6 +200,111 @@ def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed):
             per_point = dr.ravel(estimate).numpy().reshape(-1, irradiance_samples, 3).mean(axis=1)
             out[start:stop] += per_point
         out[start:stop] += dr.ravel(e).numpy().reshape(-1, 3)
+    return np.maximum(np.nan_to_num(out), 0.0)
+
+
+def stratified_directions(points, owners, spacing, seed, strata=4):
+    """Points of ``[0,1]^2`` for the paths of ``owners``, stratified across neighbouring points: one ``strata x
+    strata`` grid per voxel of edge ``spacing``, shared by the paths that start in it.
+
+    Within a voxel the ``k``-th path gets the grid cell ``perm[(k + shift) mod strata^2]`` (``perm`` a random
+    permutation, ``shift`` random per voxel), jittered within the cell. Each path's point stays uniform, so every
+    estimate stays unbiased; neighbouring points look in different directions, and the transport, which averages
+    neighbouring samples, averages a stratified set.
+
+    Parameters
+    ----------
+    points : (N, 3) numpy
+        The points.
+    owners : (K,) numpy int
+        The point each path starts from.
+    spacing : float
+        The voxels' edge, in the points' units (a voxel should hold about ``strata^2`` paths).
+    seed : int
+    strata : int
+        Grid cells per side.
+
+    Returns
+    -------
+    numpy.ndarray
+        (K, 2) float32 in ``[0, 1)``.
+    """
+    rng = np.random.default_rng([int(seed), 0x57A7])
+    cells = strata * strata
+    voxel = np.floor(points[owners] / spacing).astype(np.int64)
+    key = (voxel[:, 0] * 73856093) ^ (voxel[:, 1] * 19349663) ^ (voxel[:, 2] * 83492791)  # collisions merge voxels
+    order = np.argsort(key)
+    sorted_key = key[order]
+    start = np.r_[True, sorted_key[1:] != sorted_key[:-1]]
+    rank = np.empty(len(owners), dtype=np.int64)
+    rank[order] = np.arange(len(owners)) - np.maximum.accumulate(np.where(start, np.arange(len(owners)), 0))
+    shift = (key.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15) >> np.uint64(40)).astype(np.int64)
+    cell = rng.permutation(cells)[(rank + shift) % cells]
+    u = (np.stack([cell % strata, cell // strata], axis=1) + rng.random((len(owners), 2))) / strata
+    return np.minimum(u, np.nextafter(1.0, 0.0)).astype(np.float32)
+
+
+def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None):
+    """``E_ind`` (N, 3) numpy: paper Eq. 2 over the light that reaches the points after at least one bounce.
+
+    Cosine-weighted directions (pdf ``cos / pi``): a point with ``P`` paths gets
+    ``E_ind = (1/P) sum_j F_t(eta, cos_j) pi L_ind(x, w_j)``; with ``P < 1`` a random fraction ``P`` of the points
+    trace one path each, with weight ``1/P`` (unbiased; the transport averages neighbouring points). The directions
+    are stratified across neighbouring points (:func:`stratified_directions`, voxels holding about 16 paths).
+
+    Parameters
+    ----------
+    incident : callable
+        ``incident(sampler, rays, weight, tags) -> (K, 3) numpy``: ``weight`` times the radiance arriving along
+        ``rays`` after at least one bounce (:meth:`convsss.scene.shading.Shader.incident`); ``tags`` are the index
+        of each ray's point.
+    position, normal : mitsuba.Point3f, mitsuba.Vector3f
+        ``N`` points and their outward normals (scene units).
+    area : (N,) numpy
+        The area each point stands for (scene units squared).
+    eta : float
+        Relative index of the object's boundary.
+    paths : float
+        Paths per point (> 0; below 1, the fraction of points that trace one).
+    seed : int
+    stop : callable, optional
+        Asked between chunks; when it returns True the rest is left out (Ctrl-C).
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 3) indirect irradiance, >= 0.
+    """
+    n = dr.width(position)
+    per_point = max(1, round(paths)) if paths >= 1 else 1
+    if paths >= 1:
+        owners = np.repeat(np.arange(n), per_point)
+    else:
+        pick = np.random.default_rng([int(seed), 0x1D1]).random(n) < paths
+        owners = np.flatnonzero(pick)
+    scale = 1.0 / (per_point if paths >= 1 else paths)
+    # Voxels that hold about DIRECTION_STRATA^2 paths on a flat surface: paths per unit area = paths / area.
+    spacing = DIRECTION_STRATA * math.sqrt(float(np.mean(area)) / min(paths, per_point))
+    square = stratified_directions(dr.ravel(position).numpy().reshape(-1, 3), owners, spacing, seed,
+                                   DIRECTION_STRATA)
+    out = np.zeros((n, 3))
+    for start in range(0, len(owners), CHUNK_PATHS):
+        if stop is not None and stop():
+            break
+        owner = owners[start:start + CHUNK_PATHS]
+        lanes = len(owner)
+        index = mi.UInt32(owner.astype(np.uint32))
+        it = _interaction(dr.gather(mi.Point3f, position, index), dr.gather(mi.Vector3f, normal, index))
+        sampler = mi.load_dict({"type": "independent"})
+        sampler.seed(dr.opaque(mi.UInt32, (int(seed) * 0x27D4EB2F + start) % 2**32), lanes)
+        u = np.ascontiguousarray(square[start:start + CHUNK_PATHS].T)
+        local = mi.warp.square_to_cosine_hemisphere(mi.Point2f(u[0], u[1]))
+        rays = it.spawn_ray(it.sh_frame.to_world(local))
+        # Paper Eq. 2 by cosine sampling: F_t(eta, cos) L cos / (cos / pi) = F_t pi L, over the paths per point.
+        weight = (fresnel_transmittance(eta, local.z) * dr.pi * scale).numpy().astype(np.float64)
+        radiance = incident(sampler, rays, np.repeat(weight[:, None], 3, axis=1), owner)
+        for c in range(3):
+            out[:, c] += np.bincount(owner, radiance[:, c], minlength=n)
     return np.maximum(np.nan_to_num(out), 0.0)
 
 

@@ -28,6 +28,12 @@ def render_parameters():
                   "sum (slow, a reference); hierarchical: Jensen & Buhler 2002.", choices=available_transports()),
         Parameter("irradiance_samples", int, 16, "Direction samples per surface point for area and environment "
                   "emitters (point, spot and directional lights are evaluated exactly).", low=1),
+        Parameter("indirect_samples", float, 1.0, "Paths per surface sample for indirect light (light that reaches a "
+                  "translucent object after bouncing off the rest of the scene, other translucent objects included); "
+                  "below 1, that fraction of the samples traces one path each; 0: direct light only.", low=0.0),
+        Parameter("indirect_passes", int, 1, "Passes of light between translucent objects (another's or an object's "
+                  "own light coming back): each builds the transports of the objects it lights once more; the stats "
+                  "say how much the last pass changed.", low=1),
         Parameter("sample_density", float, 4.0, "Surface samples per layer cell: N = sample_density * area / cell^2 "
                   "over the whole surface.", low=0.0, low_open=True),
         Parameter("specular", str, "bsdf", "Boundary reflection on translucent objects: the scene's BSDF, the paper's "

@@ -20,6 +20,12 @@ a translucent object picks up its ``L_sss`` too.
 
 The loop is a wavefront: each bounce is one batch of Dr.Jit kernels over the paths still alive (compacted), with
 one numpy call per object for ``M`` (any transport works, whatever it is written in).
+
+The same path tracer gives the light that reaches a translucent object after bouncing off the scene
+(:meth:`Shader.incident`, the indirect part of paper Eq. 2): paths start on the object's surface as at depth 1 of a
+camera path, and the emission their first segment sees is left out (direct light is estimated on its own). An object
+whose transport is not built yet (``None``) has no ``M`` to give: a path that reaches it records the point and its
+weight in :attr:`Shader.deferred`, to be looked up once the transport exists (:meth:`Shader.resolve`).
 """
 
 import drjit as dr
@@ -53,7 +59,8 @@ class Shader:
     scene : mitsuba.Scene
     objects : list of TranslucentObject
     transports : list
-        One transport per object (``exitance(points_mm) -> (K, 3)``).
+        One transport per object (``exitance(points_mm) -> (K, 3)``), or ``None`` for an object whose transport is
+        not built yet (its hits are recorded in :attr:`deferred`).
     params : RenderParams
     stop : callable, optional
         Asked between bounces; when it returns True the paths end there (Ctrl-C during Mitsuba's render).
@@ -66,6 +73,9 @@ class Shader:
         self.ctx_reflect = mi.BSDFContext()
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
         self.lookups = 0
+        #: Hits on objects without a transport: ``(object, tag, points_mm, normals, weight)`` per batch.
+        self.deferred = []
+        self._tags = self._weight = None
         #: Up to this many emitters, direct light samples each of them (else one chosen by the scene).
         self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
 
@@ -86,11 +96,12 @@ class Shader:
             eta[on_object] = obj.eta
         return which, eta
 
-    def _subsurface(self, si, which, throughput):
+    def _subsurface(self, si, which, throughput, lanes):
         """Paper Eq. 7 on the lanes that hit translucent objects: ``(lanes, beta (1/pi) F_t(eta, w_o) M(x_o))``.
 
         ``M`` comes from each object's transport (numpy, positions in mm, outward normals for the transports that
-        use them); only those lanes are converted.
+        use them); only those lanes are converted. ``lanes`` are the wavefront's original lane indices: a hit on an
+        object without a transport is recorded with its lane's tag and weight (:meth:`incident`) and adds 0 here.
         """
         hit = np.flatnonzero(which >= 0)
         if len(hit) == 0:
@@ -103,6 +114,14 @@ class Shader:
         value = np.zeros((len(hit), 3))
         for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
             mine = np.flatnonzero(which[hit] == k)
+            if transport is None:
+                if len(mine):
+                    # Paper Eq. 7 without M: the weight (1/pi) F_t(eta, w_o) beta, M to be looked up later.
+                    weight = beta[mine] * (fresnel_transmittance(obj.eta, cos_o[mine]) / np.pi)[:, None]
+                    lane = lanes[hit[mine]]
+                    self.deferred.append((k, self._tags[lane], points[mine], normals[mine] * obj.orientation,
+                                          weight * self._weight[lane]))
+                continue
             for chunk in np.array_split(mine, max(1, -(-len(mine) // transport.query_batch))):
                 if len(chunk) == 0 or (self.stop is not None and self.stop()):
                     continue
@@ -111,6 +130,22 @@ class Shader:
                 value[chunk] = beta[chunk] * exitance * (transmit / np.pi)[:, None]
                 self.lookups += len(chunk)
         return hit, value
+
+    def resolve(self, transports, deferred=None):
+        """The radiance of the recorded hits (:attr:`deferred`, or the list given) now that ``transports`` exist:
+        ``(tags, values (K, 3))``, each hit's ``weight (1/pi) F_t M`` (paper Eq. 7) with its tag, hits of objects
+        whose transport is still ``None`` left out."""
+        tags, values = [np.zeros(0, dtype=np.int64)], [np.zeros((0, 3))]
+        for k, tag, points, normals, weight in self.deferred if deferred is None else deferred:
+            if transports[k] is None:
+                continue
+            for chunk in np.array_split(np.arange(len(tag)), max(1, -(-len(tag) // transports[k].query_batch))):
+                if len(chunk) == 0 or (self.stop is not None and self.stop()):
+                    continue
+                tags.append(tag[chunk])
+                values.append(weight[chunk] * transports[k].exitance(points[chunk], normals[chunk]))
+                self.lookups += len(chunk)
+        return np.concatenate(tags), np.concatenate(values)
 
     def _phong(self, si, ray_d, eta, ds, light):
         """The paper's Phong highlight from one emitter sample: ``F_r (e+2)/(2 pi) cos^e(alpha) cos_l L/pdf``."""
@@ -157,6 +192,41 @@ class Shader:
     # --- the wavefront loop -----------------------------------------------------------------------------------------
     def shade(self, sampler, ray):
         """Radiance (mi.Color3f) and hit mask (mi.Bool) for a wavefront of camera rays, drawing from ``sampler``."""
+        return self._trace(sampler, ray, 0)
+
+    def incident(self, sampler, ray, weight, tags):
+        """Radiance arriving along ``ray`` after at least one bounce, times ``weight``: (K, 3) numpy.
+
+        The rays leave a translucent object's surface, so their first hit is at depth 1 of a camera path (``max_depth``
+        and ``rr_depth`` count as for the camera's paths); emission seen at that hit is left out (it is direct light).
+        Hits on objects without a transport go to :attr:`deferred` with their lane's ``tags`` and ``weight``.
+
+        Parameters
+        ----------
+        sampler : mitsuba.Sampler
+            Seeded for ``K`` lanes.
+        ray : mitsuba.Ray3f
+            ``K`` rays from the surface.
+        weight : (K, 3) numpy
+            Each lane's factor (e.g. ``F_t pi / paths`` of a cosine-sampled estimate of Eq. 2).
+        tags : (K,) numpy int
+            Each lane's label in :attr:`deferred` (e.g. the surface sample it belongs to).
+
+        Returns
+        -------
+        numpy.ndarray
+            (K, 3) ``weight`` times the radiance.
+        """
+        self._tags, self._weight = np.asarray(tags), np.asarray(weight, dtype=np.float64)
+        try:
+            radiance, _ = self._trace(sampler, ray, 1)
+            return _to_numpy3(radiance).astype(np.float64) * self._weight
+        finally:
+            self._tags = self._weight = None
+
+    def _trace(self, sampler, ray, first_depth):
+        """The wavefront loop from ``first_depth`` (0: camera rays; 1: rays leaving a translucent surface, whose
+        first hit's emission is left out): radiance and the first hit's mask."""
         scene, params = self.scene, self.params
         n_lanes = dr.width(ray.o)
         total = dr.zeros(mi.Color3f, n_lanes)
@@ -170,15 +240,18 @@ class Shader:
         prev_delta = mi.Bool(True)
         max_depth = params.max_depth if params.max_depth > 0 else 2**31
         valid = dr.zeros(mi.Bool, n_lanes)
-        depth = 0
+        depth = first_depth
         while len(lane_np) and depth < max_depth:
             if self.stop is not None and self.stop():
                 break
             si = scene.ray_intersect(mi.Ray3f(ray_o, ray_d))
             dr.eval(si)
-            if depth == 0:
+            if depth == first_depth:
                 valid = si.is_valid()
-            contribution = self._emission(si, prev_p, prev_n, prev_pdf, prev_delta, depth) * throughput
+            if depth == 0 or depth > first_depth:
+                contribution = self._emission(si, prev_p, prev_n, prev_pdf, prev_delta, depth) * throughput
+            else:
+                contribution = dr.zeros(mi.Color3f, dr.width(si.p))
             if depth + 1 >= max_depth:
                 dr.scatter_add(total, contribution, lane)
                 break
@@ -186,7 +259,7 @@ class Shader:
             translucent = mi.Bool(which >= 0)
             eta = mi.Float(eta_np)
             # Paper Eq. 7: (1/pi) F_t(eta, w_o) M(x_o) on translucent objects.
-            hit, sss = self._subsurface(si, which, throughput)
+            hit, sss = self._subsurface(si, which, throughput, lane_np)
             if len(hit):
                 dr.scatter_add(total, _color(sss), mi.UInt32(lane_np[hit].astype(np.uint32)))
 
