@@ -108,7 +108,7 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0):
     film = mi.Point2f(((x.ravel() + 0.5) / width).astype(np.float32), ((y.ravel() + 0.5) / height).astype(np.float32))
     ray, _ = sensor.sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
     si = scene.ray_intersect(ray)
-    on_object = si.is_valid().numpy() & obj.hit(*hit_indices(mi, si))
+    on_object = si.is_valid().numpy() & obj.hit(*(a.numpy() for a in hit_indices(mi, si)))
     points = dr.ravel(si.p).numpy().reshape(-1, 3)[on_object].astype(np.float64) * params.unit_mm
     normals = dr.ravel(mi.Vector3f(si.n)).numpy().reshape(-1, 3)[on_object].astype(np.float64) * obj.orientation
     return {"samples": samples, "points": np.ascontiguousarray(points), "normals": np.ascontiguousarray(normals),

@@ -26,7 +26,7 @@ from .options import (
     tonemap_options,
 )
 
-STAGES = ("scene_load", "samples", "irradiance", "indirect", "transport", "shading", "write")
+STAGES = ("scene_load", "samples", "irradiance", "indirect", "transport", "screen", "shading", "write")
 
 class StageProgress:
     """A tqdm bar over the render's stages (stderr); ``__call__(stage)`` moves it on."""

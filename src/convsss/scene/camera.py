@@ -7,6 +7,8 @@ every pixel centre of the crop window; an object that none of them hits first is
 whatever its bounding box does.
 """
 
+from dataclasses import dataclass
+
 import drjit as dr
 import numpy as np
 
@@ -53,8 +55,32 @@ def pixel_footprint(sensor, frame, depth_mm, unit_mm):
     return float(np.linalg.norm(points[1] - points[0]))
 
 
+@dataclass
+class VisiblePoints:
+    """Where one translucent object is the first surface seen, one ray per pixel centre of the crop window.
+
+    Attributes
+    ----------
+    pixel : numpy.ndarray, shape (n,), int64    flat index ``x + y * width`` in the crop window
+    position : numpy.ndarray, shape (n, 3)      the hit points in mm (float64)
+    normal : numpy.ndarray, shape (n, 3)        the shape's geometric normals there (unit, as the mesh is oriented)
+    depth : numpy.ndarray, shape (n,)           view depths in mm
+    from_behind : numpy.ndarray, shape (n,)     whether the ray meets the surface from the side its normal points
+                                                away from (``n . d > 0``)
+    """
+
+    pixel: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+    depth: np.ndarray
+    from_behind: np.ndarray
+
+
 def first_hits(scene, sensor, frame, unit_mm, objects):
     """Where each object is the first surface seen, over one ray per pixel centre of the crop window.
+
+    The camera's sample space spans the crop window, so pixel ``(x, y)`` of it is at ``((x + 0.5) / crop_width,
+    (y + 0.5) / crop_height)``, as Mitsuba's integrators place it.
 
     Parameters
     ----------
@@ -66,27 +92,30 @@ def first_hits(scene, sensor, frame, unit_mm, objects):
 
     Returns
     -------
-    list of (numpy.ndarray, numpy.ndarray)
-        Per object, the view depths (mm, float64, shape (n,)) of those pixel centres (empty: not visible) and
-        whether the ray meets the surface from the side its normal points away from (``n . d > 0``; bool, shape
-        (n,)).
+    list of VisiblePoints
+        One per object (empty arrays: not visible).
     """
-    film = sensor.film()
-    size, offset, crop = film.size(), film.crop_offset(), film.crop_size()
-    found = [([], []) for _ in objects]
+    crop = sensor.film().crop_size()
+    found = [[] for _ in objects]
     rows = max(1, RAYS_PER_BATCH // int(crop[0]))
     for first in range(0, int(crop[1]), rows):
         y, x = np.mgrid[first:min(first + rows, int(crop[1])), 0:int(crop[0])]
-        u = ((offset[0] + x.ravel() + 0.5) / size[0]).astype(np.float32)
-        v = ((offset[1] + y.ravel() + 0.5) / size[1]).astype(np.float32)
+        u = ((x.ravel() + 0.5) / crop[0]).astype(np.float32)
+        v = ((y.ravel() + 0.5) / crop[1]).astype(np.float32)
         ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(u, v), mi.Point2f(0.5, 0.5))
         si = scene.ray_intersect(ray)
         hit = si.is_valid().numpy()
-        shapes, instances = hit_indices(mi, si)
-        depth = frame.to_view(dr.ravel(si.p).numpy().reshape(-1, 3).astype(np.float64) * unit_mm)[:, 2]
+        shapes, instances = (a.numpy() for a in hit_indices(mi, si))
+        position = dr.ravel(si.p).numpy().reshape(-1, 3).astype(np.float64) * unit_mm
+        normal = dr.ravel(si.n).numpy().reshape(-1, 3).astype(np.float64)
         away = (dr.dot(si.n, ray.d) > 0).numpy()
-        for (depths, aways), obj in zip(found, objects):
+        pixel = (x + y * int(crop[0])).ravel()
+        for chunks, obj in zip(found, objects):
             mine = hit & obj.hit(shapes, instances)
-            depths.append(depth[mine])
-            aways.append(away[mine])
-    return [(np.concatenate(depths), np.concatenate(aways)) for depths, aways in found]
+            chunks.append((pixel[mine], position[mine], normal[mine], away[mine]))
+    out = []
+    for chunks in found:
+        pixel, position, normal, away = (np.concatenate(parts) for parts in zip(*chunks))
+        out.append(VisiblePoints(pixel, position.reshape(-1, 3), normal.reshape(-1, 3), frame.to_view(
+            position.reshape(-1, 3))[:, 2], away))
+    return out

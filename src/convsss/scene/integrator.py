@@ -28,6 +28,7 @@ from ..samples import IrradianceSamples
 from ..timing import StageTimer
 from ..transport import make_transport
 from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
+from .screen import ScreenExitance
 from .irradiance import indirect_irradiance, object_samples, sample_count
 from .objects import find_translucent_objects
 from .params import RenderParams, plugin_parameters
@@ -106,9 +107,10 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             check_camera(sensor)
             frame = sensor_frame(sensor, p.unit_mm)
             seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
-        direct, cells, per_object, shown, hidden = [], [], [], [], []
-        for k, (obj, (depths, from_behind)) in enumerate(zip(objects, seen)):
-            seen_from_inside = from_behind == (obj.orientation > 0)  # against the outward normal
+        direct, cells, per_object, shown, shown_at, hidden = [], [], [], [], [], []
+        for k, (obj, visible) in enumerate(zip(objects, seen)):
+            depths = visible.depth
+            seen_from_inside = visible.from_behind == (obj.orientation > 0)  # against the outward normal
             if obj.closed and len(depths) and seen_from_inside.mean() > 0.5:
                 raise ConvsssError(f"the camera is inside translucent shape {obj.name!r}: the diffusion model renders "
                                    "objects seen from outside; move the camera out of it")
@@ -118,6 +120,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                 hidden.append(obj.name)
                 continue
             shown.append(obj)
+            shown_at.append(visible)
             # The layer cell is a pixel's footprint at the object's bounding-box centre, or, for a centre behind the
             # camera, at the median depth of its visible points.
             depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
@@ -151,9 +154,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             per_object[k].update(samples=len(s), flux=total.tolist(), flux_direct=s.flux.sum(axis=0).tolist(),
                                  flux_indirect=(total - s.flux.sum(axis=0)).tolist(),
                                  flux_from_translucent=(from_translucent[k] * s.area[:, None]).sum(axis=0).tolist())
-        self._shader = Shader(scene, shown, transports, p, stop=self.should_stop)
+        with stage("screen"):
+            screen = ScreenExitance(sensor, shown, shown_at, transports, p.unit_mm)
+        self._shader = Shader(scene, shown, transports, p, stop=self.should_stop, screen=screen)
         self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object, "hidden": hidden,
-                      "samples": int(sum(o["samples"] for o in per_object)), "translucent_passes": passes}
+                      "samples": int(sum(o["samples"] for o in per_object)), "translucent_passes": passes,
+                      "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
         return self._shader
 
     def _indirect(self, scene, objects, samples, seed, stage):

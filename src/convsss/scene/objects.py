@@ -83,12 +83,12 @@ class TranslucentObject:
 
         Parameters
         ----------
-        shapes, instances : numpy.ndarray, shape (n,), uint32
+        shapes, instances : numpy.ndarray or mitsuba.UInt32, shape (n,)
             Per lane, the registry indices of the shape hit and of its instance (0: none).
 
         Returns
         -------
-        numpy.ndarray, shape (n,), bool
+        numpy.ndarray or mitsuba.Bool, shape (n,)
         """
         return (shapes == self.shape_index) & (instances == self.instance_index)
 
@@ -212,8 +212,8 @@ def _check_span(obj):
 
 
 def hit_indices(mi, si):
-    """Per lane of a surface interaction ``si``: the (shape, instance) registry indices as numpy arrays (0: none),
-    which identify a translucent object (:meth:`TranslucentObject.hit`).
+    """Per lane of a surface interaction ``si``: the (shape, instance) registry indices (0: none), which identify a
+    translucent object (:meth:`TranslucentObject.hit`).
 
     Parameters
     ----------
@@ -224,11 +224,12 @@ def hit_indices(mi, si):
 
     Returns
     -------
-    shapes, instances : numpy.ndarray, shape (n,), uint32
+    shapes, instances : mitsuba.UInt32
+        n lanes each (``.numpy()`` for numpy arrays).
     """
     import drjit as dr
 
-    return dr.reinterpret_array(mi.UInt32, si.shape).numpy(), dr.reinterpret_array(mi.UInt32, si.instance).numpy()
+    return dr.reinterpret_array(mi.UInt32, si.shape), dr.reinterpret_array(mi.UInt32, si.instance)
 
 
 def shape_index(mi, shape):

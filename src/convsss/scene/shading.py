@@ -18,8 +18,10 @@ an ordinary unidirectional path tracer: emitter sampling and BSDF sampling combi
 roulette from ``rr_depth``, so floors, shadows and backgrounds look as in Mitsuba's ``path``. A bounce that reaches
 a translucent object picks up its ``L_sss`` too.
 
-The loop is a wavefront: each bounce is one batch of Dr.Jit kernels over the paths still alive (compacted), with
-one numpy call per object for ``M`` (any transport works, whatever it is written in).
+The loop is a wavefront: each bounce is one batch of Dr.Jit kernels over the paths still alive (compacted with
+``dr.compress``). ``M`` is read inside Dr.Jit from the exitance at the visible pixel centres (:mod:`.screen`, built
+once per render) where that knows it; only the other lanes (silhouettes, hidden sides, grazing views) go through
+numpy to each object's transport (any transport works, whatever it is written in).
 
 The same path tracer gives the light that reaches a translucent object after bouncing off the scene
 (:meth:`Shader.incident`, the indirect part of paper Eq. 2): paths start on the object's surface as at depth 1 of a
@@ -32,7 +34,6 @@ import drjit as dr
 import numpy as np
 
 from ..backend import load_mitsuba
-from ..fresnel import fresnel_transmittance
 from .mis import power_heuristic
 from .objects import hit_indices
 
@@ -64,10 +65,14 @@ class Shader:
     params : RenderParams
     stop : callable, optional
         Asked between bounces; when it returns True the paths end there (Ctrl-C during Mitsuba's render).
+    screen : ScreenExitance, optional
+        The objects' exitance at the pixel centres they are seen at (:mod:`.screen`), read instead of asking the
+        transports where it is known.
     """
 
-    def __init__(self, scene, objects, transports, params, stop=None):
+    def __init__(self, scene, objects, transports, params, stop=None, screen=None):
         self.scene, self.objects, self.transports, self.params = scene, objects, transports, params
+        self.screen = screen
         self.stop = stop
         self.ctx = mi.BSDFContext()
         self.ctx_reflect = mi.BSDFContext()
@@ -81,55 +86,61 @@ class Shader:
 
     # --- per-bounce pieces ----------------------------------------------------------------------------------------
     def _classify(self, si):
-        """Per lane: index of the translucent object hit (-1: none) and its eta, as numpy arrays.
+        """Per lane: the index of the translucent object hit (mi.Int32, -1: none) and its eta (mi.Float).
 
         An object is the pair (instance, shape): an instanced shape is shared by every instance of its shapegroup,
         and ``si.instance`` is null (index 0) on a plain shape.
         """
         shapes, instances = hit_indices(mi, si)
-        valid = si.is_valid().numpy()
-        which = np.full(len(shapes), -1, dtype=np.int64)
-        eta = np.ones(len(shapes), dtype=np.float32)
+        valid = si.is_valid()
+        which = dr.full(mi.Int32, -1, dr.width(si.p))
+        eta = dr.full(mi.Float, 1.0, dr.width(si.p))
         for k, obj in enumerate(self.objects):
             on_object = valid & obj.hit(shapes, instances)
-            which[on_object] = k
-            eta[on_object] = obj.eta
+            which = dr.select(on_object, k, which)
+            eta = dr.select(on_object, obj.eta, eta)
         return which, eta
 
-    def _subsurface(self, si, which, throughput, lanes):
-        """Paper Eq. 7 on the lanes that hit translucent objects: ``(lanes, beta (1/pi) F_t(eta, w_o) M(x_o))``.
+    def _subsurface(self, si, which, eta, throughput, lane):
+        """Paper Eq. 7 on the lanes that hit translucent objects: ``beta (1/pi) F_t(eta, w_o) M(x_o)`` (mi.Color3f, 0
+        on the other lanes).
 
-        ``M`` comes from each object's transport (numpy, positions in mm, outward normals for the transports that
-        use them); only those lanes are converted. ``lanes`` are the wavefront's original lane indices: a hit on an
-        object without a transport is recorded with its lane's tag and weight (:meth:`incident`) and adds 0 here.
+        ``M`` is read from the :class:`~convsss.scene.screen.ScreenExitance` table where it knows it; the other lanes
+        are asked of each object's transport (numpy, positions in mm, outward normals for the transports that use
+        them), and only they are converted. A hit on an object without a transport is recorded with its lane's tag
+        and weight (``lane``: the wavefront's original lane indices; :meth:`incident`) and adds 0 here.
         """
-        hit = np.flatnonzero(which >= 0)
-        if len(hit) == 0:
-            return hit, None
-        chosen = mi.UInt32(hit.astype(np.uint32))
-        points = _to_numpy3(dr.gather(mi.Point3f, si.p, chosen)).astype(np.float64) * self.params.unit_mm
-        normals = _to_numpy3(dr.gather(mi.Vector3f, mi.Vector3f(si.n), chosen)).astype(np.float64)
-        cos_o = np.abs(dr.gather(mi.Float, si.wi.z, chosen).numpy())
-        beta = _to_numpy3(dr.gather(mi.Color3f, throughput, chosen))
-        value = np.zeros((len(hit), 3))
+        weight = throughput * (1.0 - mi.fresnel(dr.abs(si.wi.z), eta)[0]) / dr.pi
+        if self.screen is not None:
+            exitance, known = self.screen.lookup(si, which)
+            value = weight * exitance
+        else:
+            known, value = dr.zeros(mi.Bool, dr.width(si.p)), dr.zeros(mi.Color3f, dr.width(si.p))
+        asked = dr.compress((which >= 0) & ~known)
+        if dr.width(asked) == 0:
+            return value
+        owner = dr.gather(mi.Int32, which, asked).numpy()
+        points = _to_numpy3(dr.gather(mi.Point3f, si.p, asked)).astype(np.float64) * self.params.unit_mm
+        normals = _to_numpy3(dr.gather(mi.Vector3f, mi.Vector3f(si.n), asked)).astype(np.float64)
+        beta = _to_numpy3(dr.gather(mi.Color3f, weight, asked)).astype(np.float64)
+        result = np.zeros((len(owner), 3))
         for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
-            mine = np.flatnonzero(which[hit] == k)
+            mine = np.flatnonzero(owner == k)
+            if len(mine) == 0:
+                continue
             if transport is None:
-                if len(mine):
-                    # Paper Eq. 7 without M: the weight (1/pi) F_t(eta, w_o) beta, M to be looked up later.
-                    weight = beta[mine] * (fresnel_transmittance(obj.eta, cos_o[mine]) / np.pi)[:, None]
-                    lane = lanes[hit[mine]]
-                    self.deferred.append((k, self._tags[lane], points[mine], normals[mine] * obj.orientation,
-                                          weight * self._weight[lane]))
+                # Paper Eq. 7 without M: the weight (1/pi) F_t(eta, w_o) beta, M to be looked up later.
+                tag = dr.gather(mi.UInt32, lane, mi.UInt32(asked.numpy()[mine])).numpy()
+                self.deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation,
+                                      beta[mine] * self._weight[tag]))
                 continue
             for chunk in np.array_split(mine, max(1, -(-len(mine) // transport.query_batch))):
                 if len(chunk) == 0 or (self.stop is not None and self.stop()):
                     continue
-                exitance = transport.exitance(points[chunk], normals[chunk] * obj.orientation)
-                transmit = fresnel_transmittance(obj.eta, cos_o[chunk])
-                value[chunk] = beta[chunk] * exitance * (transmit / np.pi)[:, None]
+                result[chunk] = beta[chunk] * transport.exitance(points[chunk], normals[chunk] * obj.orientation)
                 self.lookups += len(chunk)
-        return hit, value
+        dr.scatter(value, _color(result), asked)
+        return value
 
     def resolve(self, transports, deferred=None):
         """The radiance of the recorded hits (:attr:`deferred`, or the list given) now that ``transports`` exist:
@@ -231,7 +242,6 @@ class Shader:
         n_lanes = dr.width(ray.o)
         total = dr.zeros(mi.Color3f, n_lanes)
         lane = dr.arange(mi.UInt32, n_lanes)
-        lane_np = np.arange(n_lanes)
         ray_o, ray_d = mi.Point3f(ray.o), mi.Vector3f(ray.d)
         throughput = mi.Color3f(1.0)
         prev_p = mi.Point3f(ray.o)
@@ -241,7 +251,7 @@ class Shader:
         max_depth = params.max_depth if params.max_depth > 0 else 2**31
         valid = dr.zeros(mi.Bool, n_lanes)
         depth = first_depth
-        while len(lane_np) and depth < max_depth:
+        while dr.width(lane) and depth < max_depth:
             if self.stop is not None and self.stop():
                 break
             si = scene.ray_intersect(mi.Ray3f(ray_o, ray_d))
@@ -255,13 +265,10 @@ class Shader:
             if depth + 1 >= max_depth:
                 dr.scatter_add(total, contribution, lane)
                 break
-            which, eta_np = self._classify(si)
-            translucent = mi.Bool(which >= 0)
-            eta = mi.Float(eta_np)
+            which, eta = self._classify(si)
+            translucent = which >= 0
             # Paper Eq. 7: (1/pi) F_t(eta, w_o) M(x_o) on translucent objects.
-            hit, sss = self._subsurface(si, which, throughput, lane_np)
-            if len(hit):
-                dr.scatter_add(total, _color(sss), mi.UInt32(lane_np[hit].astype(np.uint32)))
+            contribution += self._subsurface(si, which, eta, throughput, lane)
 
             alive = si.is_valid()
             bsdf = si.bsdf(mi.Ray3f(ray_o, ray_d))
@@ -295,10 +302,9 @@ class Shader:
 
             dr.scatter_add(total, contribution, lane)
             dr.eval(total, throughput, continues)
-            keep = continues.numpy()
-            if not keep.any():
+            chosen = dr.compress(continues)
+            if dr.width(chosen) == 0:
                 break
-            chosen = mi.UInt32(np.flatnonzero(keep).astype(np.uint32))
             direction = si.to_world(bs.wo)
             next_o = si.spawn_ray(direction).o
             ray_o = dr.gather(mi.Point3f, next_o, chosen)
@@ -309,7 +315,6 @@ class Shader:
             prev_pdf = dr.gather(mi.Float, bs.pdf, chosen)
             prev_delta = dr.gather(mi.Bool, mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta), chosen)
             lane = dr.gather(mi.UInt32, lane, chosen)
-            lane_np = lane_np[keep]
             dr.eval(ray_o, ray_d, throughput, prev_p, prev_n, prev_pdf, prev_delta, lane)
             depth += 1
         # Hand Mitsuba evaluated arrays: a path cut at max_depth leaves `total` scattered into but not evaluated, and
