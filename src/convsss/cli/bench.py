@@ -40,6 +40,36 @@ def bench_transport_command(quick, runs, as_json, progress):
     click.echo(json.dumps(rows, indent=1) if as_json else transport_table(rows))
 
 
+@bench.command("render")
+@click.option("--quick", is_flag=True, help="256² at 1 and 4 spp, 3 runs, no command lines: about a minute.")
+@click.option("--runs", type=click.IntRange(1), default=None,
+              help="Timed renders per configuration and integrator, after one warm-up (default 5; 3 with --quick).")
+@click.option("--commands/--no-commands", default=None,
+              help="Also time whole command lines in fresh processes: convsss --version, the demo at 64² and at "
+                   "800², 1 spp. [default: on; off with --quick]")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print {rows, commands} as JSON: per row width, spp, stages_s, convsss_s, path_s, shading_ratio, "
+                   "total_ratio, screen_queries, exitance_lookups.")
+@PROGRESS
+def bench_render_command(quick, runs, commands, as_json, progress):
+    """The demo scene rendered per stage beside Mitsuba's path integrator on the same scene.
+
+    The demo of `make demo` (40 mm wholemilk bunny, dielectric boundary, floor, key and back light) at 256², 512²
+    and 800², 1, 4 and 16 spp, in one process: after a warm-up render of each, medians of --runs renders of each
+    (alternating) of every convsss stage, of its whole render and of Mitsuba's path. The headline is shading / path
+    at equal spp.
+    """
+    from ..bench.render import bench_commands, bench_render, render_table
+
+    if quick:
+        rows = bench_render(resolutions=(256,), spps=(1, 4), runs=runs or 3, progress=progress)
+    else:
+        rows = bench_render(runs=runs or 5, progress=progress)
+    timed = bench_commands(runs=runs or 5, progress=progress) if (commands if commands is not None else not quick) \
+        else {}
+    click.echo(json.dumps({"rows": rows, "commands": timed}, indent=1) if as_json else render_table(rows, timed))
+
+
 @bench.command("accuracy")
 @click.option("--quick", is_flag=True,
               help="A tiny run: 96² image, the 4 mm and 40 mm bunnies, multiscale accuracy 0.01 and 0.1, layers 4 "

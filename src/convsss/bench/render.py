@@ -1,0 +1,128 @@
+"""Whole renders of the demo scene per stage, beside Mitsuba's own ``path`` integrator on the same scene.
+
+The scene is ``make demo``'s: the bundled bunny, 40 mm of whole milk behind a dielectric boundary, on a grey floor,
+lit by a key light and a back light (:func:`~convsss.scene.quick.quick_scene`). Per resolution and spp, in one
+process: one warm-up render of each integrator (Dr.Jit compiles its kernels, numba loads its cache), then ``runs``
+timed renders of each, alternating; reported are the medians of the ``convsss`` stages (the integrator's
+``stats["seconds"]``), of its whole ``mi.render`` call and of Mitsuba's ``path`` (``max_depth`` as the integrator's)
+rendering the same scene. The headline ratio is shading / ``path`` at equal spp: both trace the same camera paths,
+and ``convsss`` only replaces what happens where they meet the translucent object.
+
+``commands``: the wall time of whole command lines in fresh processes (interpreter start, imports, Mitsuba variant,
+numba cache, scene, render, files): ``convsss --version`` and ``convsss render`` of the demo at 64² and at 800²,
+1 spp.
+"""
+
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from tqdm import tqdm
+
+#: Resolutions (square) and samples per pixel of the full benchmark.
+RESOLUTIONS = (256, 512, 800)
+SPPS = (1, 4, 16)
+#: Stages of a render, in order (the integrator's ``stats["seconds"]``; ``indirect`` only with indirect light).
+STAGES = ("samples", "irradiance", "indirect", "transport", "screen", "shading")
+#: The demo's object.
+DEMO = {"material": "wholemilk", "size_mm": 40.0}
+
+
+def demo_scene(mi, width, spp):
+    """The loaded demo scene at ``width``² and ``spp``, its integrator ``convsss`` as ``convsss render --mesh`` sets
+    it (the defaults, with the paper's Phong highlight)."""
+    from ..materials import material
+    from ..scene.quick import demo_mesh, quick_scene
+
+    return mi.load_dict(quick_scene(demo_mesh(), material(DEMO["material"]), DEMO["size_mm"], width=width,
+                                    height=width, spp=spp, floor=True,
+                                    integrator={"type": "convsss", "specular": "phong"}))
+
+
+def _timed(render):
+    import drjit as dr
+
+    start = time.perf_counter()
+    image = render()
+    dr.eval(image)
+    dr.sync_thread()
+    return time.perf_counter() - start
+
+
+def bench_render(resolutions=RESOLUTIONS, spps=SPPS, runs=5, progress=True):
+    """Rows ``{width, spp, stages_s: {stage: median}, convsss_s, path_s, shading_ratio, total_ratio}`` (seconds,
+    medians of ``runs``), one per resolution and spp."""
+    import convsss
+
+    mi = convsss.register()
+    configs = [(w, s) for w in resolutions for s in spps]
+    bar = tqdm(total=len(configs) * (runs + 1) * 2, desc="bench render", unit="render", disable=not progress)
+    rows = []
+    for width, spp in configs:
+        scene = demo_scene(mi, width, spp)
+        integrator = scene.integrator()
+        path = mi.load_dict({"type": "path", "max_depth": integrator.params.max_depth,
+                             "rr_depth": integrator.params.rr_depth})
+        stages, ours, theirs = {name: [] for name in STAGES}, [], []
+        for run in range(runs + 1):
+            bar.set_postfix_str(f"{width}² {spp} spp" + (" (warm-up)" if run == 0 else ""))
+            seconds = _timed(lambda: mi.render(scene, seed=run, spp=spp))
+            bar.update()
+            path_seconds = _timed(lambda: mi.render(scene, integrator=path, seed=run, spp=spp))
+            bar.update()
+            if run == 0:
+                continue
+            ours.append(seconds)
+            theirs.append(path_seconds)
+            for name in STAGES:
+                stages[name].append(integrator.stats["seconds"].get(name, 0.0))
+        medians = {name: statistics.median(values) for name, values in stages.items()}
+        path_s, convsss_s = statistics.median(theirs), statistics.median(ours)
+        rows.append({"width": width, "spp": spp, "stages_s": medians, "convsss_s": convsss_s, "path_s": path_s,
+                     "shading_ratio": medians["shading"] / path_s, "total_ratio": convsss_s / path_s,
+                     "screen_queries": integrator.stats["screen_exitance"]["queries"],
+                     "exitance_lookups": integrator.stats["exitance_lookups"]})
+    bar.close()
+    return rows
+
+
+def bench_commands(runs=5, progress=True):
+    """Wall seconds (median of ``runs``, each in a fresh process) of whole command lines: ``{name: seconds}``."""
+    command = [sys.executable, "-c", "from convsss.cli import main; main()"]
+    demo = ["render", "--mesh", "bunny", "--material", DEMO["material"], "--size-mm", f"{DEMO['size_mm']:g}",
+            "--floor", "--spp", "1", "--no-progress"]
+    with tempfile.TemporaryDirectory() as folder:
+        lines = {"convsss --version": ["--version"],
+                 "render 64² 1 spp": demo + ["--width", "64", "--height", "64", "-o", str(Path(folder) / "a")],
+                 "render 800² 1 spp": demo + ["--width", "800", "--height", "800", "-o", str(Path(folder) / "b")]}
+        bar = tqdm(total=len(lines) * (runs + 1), desc="bench commands", unit="run", disable=not progress)
+        result = {}
+        for name, args in lines.items():
+            seconds = []
+            for run in range(runs + 1):  # the first run fills the numba and Dr.Jit caches if they are cold
+                start = time.perf_counter()
+                subprocess.run(command + args, check=True, capture_output=True)
+                seconds.append(time.perf_counter() - start)
+                bar.update()
+            result[name] = statistics.median(seconds[1:])
+        bar.close()
+    return result
+
+
+def render_table(rows, commands=None):
+    """The rows as a text table (seconds), then the command lines' wall times."""
+    head = f"{'size':>6} {'spp':>4} " + " ".join(f"{name:>10}" for name in STAGES)
+    head += f" {'convsss':>8} {'path':>7} {'shade/path':>10} {'all/path':>8} {'lookups':>8}"
+    lines = [head]
+    for r in rows:
+        lines.append(f"{r['width']:>5}² {r['spp']:>4} " + " ".join(f"{r['stages_s'][n]:>10.3f}" for n in STAGES)
+                     + f" {r['convsss_s']:>8.3f} {r['path_s']:>7.3f} {r['shading_ratio']:>10.2f}"
+                     + f" {r['total_ratio']:>8.2f} {r['exitance_lookups']:>8d}")
+    lines.append("seconds, medians; shade/path = shading stage / Mitsuba's path on the same scene and spp; "
+                 "lookups = transport queries made while shading (besides the screen table's)")
+    for name, seconds in (commands or {}).items():
+        lines.append(f"{name}: {seconds:.2f} s wall (fresh process, median)")
+    return "\n".join(lines)
