@@ -18,10 +18,11 @@ an ordinary unidirectional path tracer: emitter sampling and BSDF sampling combi
 roulette from ``rr_depth``, so floors, shadows and backgrounds look as in Mitsuba's ``path``. A bounce that reaches
 a translucent object picks up its ``L_sss`` too.
 
-The loop is a wavefront: each bounce is one batch of Dr.Jit kernels over the paths still alive (compacted with
-``dr.compress``). ``M`` is read inside Dr.Jit from the exitance at the visible pixel centres (:mod:`.screen`, built
-once per render) where that knows it; only the other lanes (silhouettes, hidden sides, grazing views) go through
-numpy to each object's transport (any transport works, whatever it is written in).
+The path loop is one symbolic Dr.Jit loop (a single kernel for all bounces, as Mitsuba's own integrators). ``M`` is
+read inside it from the exitance at the visible pixel centres (:mod:`.screen`, built once per render) where that
+knows it; the other hits on translucent objects (silhouettes, hidden sides, grazing views) are recorded in the loop
+and asked of each object's transport through numpy afterwards (any transport works, whatever it is written in), their
+``beta (1/pi) F_t M`` added to their lanes.
 
 The same path tracer gives the light that reaches a translucent object after bouncing off the scene
 (:meth:`Shader.incident`, the indirect part of paper Eq. 2): paths start on the object's surface as at depth 1 of a
@@ -40,6 +41,8 @@ from .objects import hit_indices
 mi = load_mitsuba()
 
 MAX_EMITTERS_SUMMED = 8
+#: Room for recorded hits (those the screen table does not know), per path; more take a second, identical trace.
+RECORD_ROOM = 1.0
 
 
 def _to_numpy3(v):
@@ -100,47 +103,6 @@ class Shader:
             which = dr.select(on_object, k, which)
             eta = dr.select(on_object, obj.eta, eta)
         return which, eta
-
-    def _subsurface(self, si, which, eta, throughput, lane):
-        """Paper Eq. 7 on the lanes that hit translucent objects: ``beta (1/pi) F_t(eta, w_o) M(x_o)`` (mi.Color3f, 0
-        on the other lanes).
-
-        ``M`` is read from the :class:`~convsss.scene.screen.ScreenExitance` table where it knows it; the other lanes
-        are asked of each object's transport (numpy, positions in mm, outward normals for the transports that use
-        them), and only they are converted. A hit on an object without a transport is recorded with its lane's tag
-        and weight (``lane``: the wavefront's original lane indices; :meth:`incident`) and adds 0 here.
-        """
-        weight = throughput * (1.0 - mi.fresnel(dr.abs(si.wi.z), eta)[0]) / dr.pi
-        if self.screen is not None:
-            exitance, known = self.screen.lookup(si, which)
-            value = weight * exitance
-        else:
-            known, value = dr.zeros(mi.Bool, dr.width(si.p)), dr.zeros(mi.Color3f, dr.width(si.p))
-        asked = dr.compress((which >= 0) & ~known)
-        if dr.width(asked) == 0:
-            return value
-        owner = dr.gather(mi.Int32, which, asked).numpy()
-        points = _to_numpy3(dr.gather(mi.Point3f, si.p, asked)).astype(np.float64) * self.params.unit_mm
-        normals = _to_numpy3(dr.gather(mi.Vector3f, mi.Vector3f(si.n), asked)).astype(np.float64)
-        beta = _to_numpy3(dr.gather(mi.Color3f, weight, asked)).astype(np.float64)
-        result = np.zeros((len(owner), 3))
-        for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
-            mine = np.flatnonzero(owner == k)
-            if len(mine) == 0:
-                continue
-            if transport is None:
-                # Paper Eq. 7 without M: the weight (1/pi) F_t(eta, w_o) beta, M to be looked up later.
-                tag = dr.gather(mi.UInt32, lane, mi.UInt32(asked.numpy()[mine])).numpy()
-                self.deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation,
-                                      beta[mine] * self._weight[tag]))
-                continue
-            for chunk in np.array_split(mine, max(1, -(-len(mine) // transport.query_batch))):
-                if len(chunk) == 0 or (self.stop is not None and self.stop()):
-                    continue
-                result[chunk] = beta[chunk] * transport.exitance(points[chunk], normals[chunk] * obj.orientation)
-                self.lookups += len(chunk)
-        dr.scatter(value, _color(result), asked)
-        return value
 
     def resolve(self, transports, deferred=None):
         """The radiance of the recorded hits (:attr:`deferred`, or the list given) now that ``transports`` exist:
@@ -236,98 +198,150 @@ class Shader:
             self._tags = self._weight = None
 
     def _trace(self, sampler, ray, first_depth):
-        """The wavefront loop from ``first_depth`` (0: camera rays; 1: rays leaving a translucent surface, whose
-        first hit's emission is left out): radiance and the first hit's mask."""
-        scene, params = self.scene, self.params
-        n_lanes = dr.width(ray.o)
-        total = dr.zeros(mi.Color3f, n_lanes)
-        lane = dr.arange(mi.UInt32, n_lanes)
-        ray_o, ray_d = mi.Point3f(ray.o), mi.Vector3f(ray.d)
-        throughput = mi.Color3f(1.0)
-        prev_p = mi.Point3f(ray.o)
-        prev_n = mi.Vector3f(0.0)
-        prev_pdf = mi.Float(1.0)
-        prev_delta = mi.Bool(True)
-        max_depth = params.max_depth if params.max_depth > 0 else 2**31
-        valid = dr.zeros(mi.Bool, n_lanes)
-        depth = first_depth
-        while dr.width(lane) and depth < max_depth:
-            if self.stop is not None and self.stop():
+        """The paths from ``first_depth`` (0: camera rays; 1: rays leaving a translucent surface, whose first hit's
+        emission is left out): radiance and the first hit's mask.
+
+        One symbolic Dr.Jit loop (:meth:`_paths`) traces every bounce; the hits whose ``M`` the screen table does not
+        know are recorded there and asked of the transports afterwards (:meth:`_recorded`). Should more hits need
+        recording than there is room for, the paths are traced again from a copy of the sampler taken before (the
+        same paths) with room for all of them.
+        """
+        room = max(1, int(RECORD_ROOM * dr.width(ray.o)))
+        while True:
+            replay = sampler.clone()
+            total, valid, records, count = self._paths(sampler, ray, first_depth, room)
+            if count <= room:
                 break
-            si = scene.ray_intersect(mi.Ray3f(ray_o, ray_d))
-            dr.eval(si)
-            if depth == first_depth:
-                valid = si.is_valid()
-            if depth == 0 or depth > first_depth:
-                contribution = self._emission(si, prev_p, prev_n, prev_pdf, prev_delta, depth) * throughput
-            else:
-                contribution = dr.zeros(mi.Color3f, dr.width(si.p))
-            if depth + 1 >= max_depth:
-                dr.scatter_add(total, contribution, lane)
-                break
-            which, eta = self._classify(si)
-            translucent = which >= 0
-            # Paper Eq. 7: (1/pi) F_t(eta, w_o) M(x_o) on translucent objects.
-            contribution += self._subsurface(si, which, eta, throughput, lane)
-
-            alive = si.is_valid()
-            bsdf = si.bsdf(mi.Ray3f(ray_o, ray_d))
-            u_light = dr.gather(mi.Point2f, sampler.next_2d(), lane)
-            u_lobe = dr.gather(mi.Float, sampler.next_1d(), lane)
-            u_dir = dr.gather(mi.Point2f, sampler.next_2d(), lane)
-            u_rr = dr.gather(mi.Float, sampler.next_1d(), lane)
-
-            # Direct light by emitter sampling.
-            opaque = alive & ~translucent
-            direct_light = dr.zeros(mi.Color3f, dr.width(si.p))
-            for ds, light in self._light_samples(si, u_light, alive):
-                direct_light += self._direct(si, bsdf, ray_d, eta, translucent, opaque, alive, ds, light)
-            contribution += throughput * direct_light
-
-            # Continue by BSDF sampling (translucent objects: their reflection lobe only, in bsdf mode).
-            bs, weight = bsdf.sample(self.ctx, si, u_lobe, u_dir, opaque)
-            continues = opaque
-            if params.specular == "bsdf":
-                reflect = alive & translucent
-                bs_r, weight_r = bsdf.sample(self.ctx_reflect, si, u_lobe, u_dir, reflect)
-                bs = dr.select(reflect, bs_r, bs)
-                weight = dr.select(reflect, weight_r, weight)
-                continues = alive & (opaque | translucent)
-            throughput = throughput * dr.select(continues, weight, 0.0)
-            continues &= (bs.pdf > 0) & (dr.max(throughput) > 0)
-            if depth + 1 >= params.rr_depth:
-                q = dr.minimum(dr.max(throughput), 0.95)
-                continues &= u_rr < q
-                throughput = throughput / dr.select(continues, q, 1.0)
-
-            dr.scatter_add(total, contribution, lane)
-            dr.eval(total, throughput, continues)
-            chosen = dr.compress(continues)
-            if dr.width(chosen) == 0:
-                break
-            direction = si.to_world(bs.wo)
-            next_o = si.spawn_ray(direction).o
-            ray_o = dr.gather(mi.Point3f, next_o, chosen)
-            ray_d = dr.gather(mi.Vector3f, direction, chosen)
-            throughput = dr.gather(mi.Color3f, throughput, chosen)
-            prev_p = dr.gather(mi.Point3f, si.p, chosen)
-            prev_n = dr.gather(mi.Vector3f, mi.Vector3f(si.n), chosen)
-            prev_pdf = dr.gather(mi.Float, bs.pdf, chosen)
-            prev_delta = dr.gather(mi.Bool, mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta), chosen)
-            lane = dr.gather(mi.UInt32, lane, chosen)
-            dr.eval(ray_o, ray_d, throughput, prev_p, prev_n, prev_pdf, prev_delta, lane)
-            depth += 1
-        # Hand Mitsuba evaluated arrays: a path cut at max_depth leaves `total` scattered into but not evaluated, and
-        # Dr.Jit aborts on such a 'dirty' variable inside the film's kernel (seen with a box filter).
+            sampler, room = replay, count
+        self._recorded(total, records, count)
         dr.eval(total, valid)
         return total, valid
 
-    def _emission(self, si, prev_p, prev_n, prev_pdf, prev_delta, depth):
-        """Emitted radiance seen at ``si``, MIS-weighted against emitter sampling after a non-delta BSDF sample."""
+    @dr.syntax
+    def _paths(self, sampler, ray, first_depth, room):
+        """The path tracer's loop: ``(radiance, first hit's mask, records, count)``, ``records`` the (object, point,
+        normal, weight ``beta (1/pi) F_t``, lane) of the first ``room`` of the ``count`` hits on translucent objects
+        whose ``M`` is not in the screen table (paper Eq. 7 without ``M``)."""
+        scene, params = self.scene, self.params
+        n_lanes = dr.width(ray.o)
+        max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
+        count = dr.zeros(mi.UInt32, 1)
+        records = (dr.zeros(mi.Int32, room), dr.zeros(mi.Point3f, room), dr.zeros(mi.Vector3f, room),
+                   dr.zeros(mi.Color3f, room), dr.zeros(mi.UInt32, room))
+        lane = dr.arange(mi.UInt32, n_lanes)
+        ray = mi.Ray3f(ray)
+        total = dr.zeros(mi.Color3f, n_lanes)
+        throughput = dr.full(mi.Color3f, 1.0, n_lanes)
+        prev_p = mi.Point3f(ray.o)
+        prev_n = dr.zeros(mi.Vector3f, n_lanes)
+        prev_pdf = dr.full(mi.Float, 1.0, n_lanes)
+        prev_delta = dr.full(mi.Bool, True, n_lanes)
+        valid = dr.zeros(mi.Bool, n_lanes)
+        depth = dr.full(mi.UInt32, first_depth, n_lanes)
+        active = dr.full(mi.Bool, True, n_lanes)
+        while active:
+            si = scene.ray_intersect(ray, active)
+            valid = dr.select(depth == first_depth, si.is_valid(), valid)
+            # Emission seen here (not on the first hit of a path that starts on a surface: that is direct light).
+            seen = active & ((depth > first_depth) | (depth == 0))
+            contribution = dr.select(seen, self._emission(si, prev_p, prev_n, prev_pdf, prev_delta) * throughput,
+                                     0.0)
+            alive = active & si.is_valid() & (depth + 1 < max_depth)
+            which, eta = self._classify(si)
+            translucent = alive & (which >= 0)
+            # Paper Eq. 7: (1/pi) F_t(eta, w_o) M(x_o) on translucent objects.
+            weight = throughput * (1.0 - mi.fresnel(dr.abs(si.wi.z), eta)[0]) / dr.pi
+            known, sss = self._screen_exitance(si, which, translucent, weight)
+            contribution += sss
+            asked = translucent & ~known
+            slot = dr.scatter_inc(count, mi.UInt32(0), asked)
+            kept = asked & (slot < room)
+            for record, value in zip(records, (which, si.p, mi.Vector3f(si.n), weight, lane)):
+                dr.scatter(record, value, slot, kept)
+
+            bsdf = si.bsdf(ray)
+            u_light = sampler.next_2d(alive)
+            u_lobe = sampler.next_1d(alive)
+            u_dir = sampler.next_2d(alive)
+            u_rr = sampler.next_1d(alive)
+
+            # Direct light by emitter sampling.
+            opaque = alive & (which < 0)
+            direct_light = dr.zeros(mi.Color3f, n_lanes)
+            for ds, light in self._light_samples(si, u_light, alive):
+                direct_light += self._direct(si, bsdf, ray.d, eta, translucent, opaque, alive, ds, light)
+            contribution += throughput * direct_light
+
+            bs, bsdf_weight, continues = self._bounce(si, bsdf, u_lobe, u_dir, opaque, translucent)
+            throughput = throughput * dr.select(continues, bsdf_weight, 0.0)
+            continues &= (bs.pdf > 0) & (dr.max(throughput) > 0)
+            roulette = continues & (depth + 1 >= params.rr_depth)
+            q = dr.minimum(dr.max(throughput), 0.95)
+            continues &= ~roulette | (u_rr < q)
+            throughput = dr.select(roulette & continues, throughput / q, throughput)
+
+            total += contribution
+            direction = si.to_world(bs.wo)
+            ray = si.spawn_ray(direction)
+            prev_p = mi.Point3f(si.p)
+            prev_n = mi.Vector3f(si.n)
+            prev_pdf = mi.Float(bs.pdf)
+            prev_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+            active = continues
+            depth += 1
+        return total, valid, records, int(count.numpy()[0])
+
+    def _screen_exitance(self, si, which, translucent, weight):
+        """Where the screen table knows ``M`` on the ``translucent`` lanes: ``(known, weight M)`` (Eq. V1)."""
+        if self.screen is None:
+            return dr.zeros(mi.Bool, dr.width(si.p)), dr.zeros(mi.Color3f, dr.width(si.p))
+        exitance, known = self.screen.lookup(si, which)
+        known &= translucent
+        return known, dr.select(known, weight * exitance, 0.0)
+
+    def _bounce(self, si, bsdf, u_lobe, u_dir, opaque, translucent):
+        """The next direction by BSDF sampling (translucent objects: their reflection lobe only, in ``bsdf`` mode):
+        ``(sample, weight, continues)``."""
+        bs, weight = bsdf.sample(self.ctx, si, u_lobe, u_dir, opaque)
+        if self.params.specular != "bsdf":
+            return bs, weight, mi.Bool(opaque)
+        bs_r, weight_r = bsdf.sample(self.ctx_reflect, si, u_lobe, u_dir, translucent)
+        return dr.select(translucent, bs_r, bs), dr.select(translucent, weight_r, weight), opaque | translucent
+
+    def _recorded(self, total, records, count):
+        """Adds to ``total`` the recorded hits' ``weight M`` from each object's transport (numpy, positions in mm,
+        outward normals for the transports that use them); hits on an object without a transport go to
+        :attr:`deferred` with their lane's tag and weight (:meth:`incident`)."""
+        if count == 0:
+            return
+        owner, points, normals, beta, lanes = (dr.ravel(r).numpy() if i in (1, 2, 3) else r.numpy()
+                                               for i, r in enumerate(records))
+        owner, lanes = owner[:count], lanes[:count]
+        points = points.reshape(-1, 3)[:count].astype(np.float64) * self.params.unit_mm
+        normals = normals.reshape(-1, 3)[:count].astype(np.float64)
+        beta = beta.reshape(-1, 3)[:count].astype(np.float64)
+        value = np.zeros((count, 3))
+        for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
+            mine = np.flatnonzero(owner == k)
+            if len(mine) == 0:
+                continue
+            if transport is None:
+                tag = lanes[mine]
+                self.deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation,
+                                      beta[mine] * self._weight[tag]))
+                continue
+            for chunk in np.array_split(mine, max(1, -(-len(mine) // transport.query_batch))):
+                if len(chunk) == 0 or (self.stop is not None and self.stop()):
+                    continue
+                value[chunk] = beta[chunk] * transport.exitance(points[chunk], normals[chunk] * obj.orientation)
+                self.lookups += len(chunk)
+        dr.scatter_add(total, _color(value), mi.UInt32(lanes.astype(np.uint32)))
+
+    def _emission(self, si, prev_p, prev_n, prev_pdf, prev_delta):
+        """Emitted radiance seen at ``si``, MIS-weighted against emitter sampling after a non-delta BSDF sample (a
+        camera ray counts as a delta one)."""
         emitter = si.emitter(self.scene)
         radiance = emitter.eval(si)
-        if depth == 0:
-            return radiance
         prev = dr.zeros(mi.Interaction3f, dr.width(prev_p))
         prev.p, prev.n = prev_p, prev_n
         ds = mi.DirectionSample3f(self.scene, si, prev)
