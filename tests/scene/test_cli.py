@@ -92,6 +92,36 @@ def test_reference_saves_every_pass(scene_file, tmp_path):
     assert read_image(out.with_suffix(".exr")).max() > 0
 
 
+def test_exposure_from_keys_the_png_on_another_image(scene_file, tmp_path):
+    """--exposure-from IMAGE: the PNG keyed on IMAGE (here a reference 4x as bright: darker than keyed on itself);
+    the EXR unchanged."""
+    from convsss.image import write_exr, write_png
+
+    ref = tmp_path / "ref"
+    assert run("reference", scene_file, "-o", ref, "--spp", 1, "--pass-spp", 1, "--no-progress").exit_code == 0
+    linear = read_image(ref.with_suffix(".exr"))
+    write_exr(tmp_path / "bright.exr", 4.0 * linear)
+    dim = tmp_path / "dim"
+    result = run("reference", scene_file, "-o", dim, "--spp", 1, "--pass-spp", 1, "--no-progress",
+                 "--exposure-from", tmp_path / "bright.exr")
+    assert result.exit_code == 0, result.output
+    np.testing.assert_array_equal(read_image(dim.with_suffix(".exr")), linear)
+    png, own = read_image(dim.with_suffix(".png")), read_image(ref.with_suffix(".png"))
+    assert png.mean() < 0.7 * own.mean()
+    expected = read_image(write_png(tmp_path / "expected-dim.png", linear, anchor=4.0 * linear))
+    np.testing.assert_allclose(png, expected, atol=0.01)  # the EXR is float32, the PNG made from float64
+    out = tmp_path / "conv"
+    result = run("render", scene_file, "-o", out, "--no-progress", "--exposure-from", ref.with_suffix(".exr"),
+                 "--stats", tmp_path / "conv.json")
+    assert result.exit_code == 0, result.output
+    expected = read_image(write_png(tmp_path / "expected-conv.png", read_image(out.with_suffix(".exr")),
+                                    anchor=linear))
+    np.testing.assert_allclose(read_image(out.with_suffix(".png")), expected, atol=0.01)
+    assert not np.allclose(read_image(out.with_suffix(".png")),
+                           read_image(write_png(tmp_path / "own.png", read_image(out.with_suffix(".exr")))), atol=0.01)
+    assert json.loads((tmp_path / "conv.json").read_text())["tonemap"]["exposure_from"] == str(ref) + ".exr"
+
+
 def _scene_with(tmp_path, shape):
     path = tmp_path / "bad.xml"
     path.write_text(f"""<scene version="3.0.0">
@@ -199,6 +229,8 @@ QUICK = ("--mesh", "bunny.obj", "--material", "wholemilk", "--size-mm", 10)
     ("render", "studio.xml", "-o", "out", "--profile", "skin.csv", "--stats", "skin.csv"),
     ("render", *QUICK, "-o", "out", "--stats", "bunny.obj"),
     ("reference", "studio.xml", "-o", "studio.exr"),
+    ("reference", "studio.xml", "-o", "ref", "--exposure-from", "ref.exr"),
+    ("render", "studio.xml", "-o", "out", "--exposure-from", "out.exr"),
     ("scene", *QUICK, "-o", "bunny.obj"),
 ])
 def test_outputs_never_overwrite_inputs(studio, args):
@@ -236,6 +268,8 @@ def test_read_only_output_folder_fails_before_the_render(studio):
     (("--exposure", "nan"), "exposure=nan is not allowed"),
     (("--key", 0), "key=0.0 is not allowed"),
     (("--key", -1), "key=-1.0 is not allowed"),
+    (("--exposure-from", "nope.exr"), "image 'nope.exr' does not exist"),
+    (("--exposure-from", "studio.exr", "--tonemap", "exposure"), "it needs --tonemap reinhard, not exposure"),
 ])
 @pytest.mark.parametrize("command", ["render", "reference"])
 def test_bad_option_values_fail_in_one_line(studio, command, args, message):

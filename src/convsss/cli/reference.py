@@ -8,7 +8,15 @@ import click
 from ..errors import ConvsssError
 from ..files import check_outputs, text_writer, write_files
 from .main import cli
-from .options import PROGRESS, load_source, output_stem, scene_source_options, source_inputs, tonemap_options
+from .options import (
+    PROGRESS,
+    exposure_anchor,
+    load_source,
+    output_stem,
+    scene_source_options,
+    source_inputs,
+    tonemap_options,
+)
 
 
 @cli.command()
@@ -21,7 +29,7 @@ from .options import PROGRESS, load_source, output_stem, scene_source_options, s
 @tonemap_options
 @PROGRESS
 def reference(scene_file, mesh, material, size_mm, floor, boundary, width, height, spp, seed, output, pass_spp,
-              tonemap, key, exposure, progress):
+              tonemap, key, exposure, exposure_from, progress):
     """Render SCENE_FILE with Mitsuba's volumetric path tracer volpathmis: the ground truth of `convsss render`.
 
     Russian roulette is off and paths are unbounded. --spp is the total (default: the scene's sampler), rendered in
@@ -45,7 +53,8 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
     start = time.perf_counter()
     stem = output_stem(output)
     exr, png, info = (stem.with_suffix(suffix) for suffix in (".exr", ".png", ".json"))
-    check_outputs([exr, png, info], source_inputs(scene_file, mesh))
+    check_outputs([exr, png, info], [*source_inputs(scene_file, mesh), *([exposure_from] if exposure_from else [])])
+    anchor = exposure_anchor(exposure_from, tonemap)
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height)
     total_spp = spp if spp is not None else (16 if scene_file is None else scene.sensors()[0].sampler().sample_count())
     bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress)
@@ -56,7 +65,7 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
             "rr_depth": "off", "max_depth": -1, "spp_done": done, "spp_requested": total_spp,
             "passes_done": index + 1, "passes": n_passes, "seed": seed,
             "seconds": time.perf_counter() - start}, indent=1)
-        write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure),
+        write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure, anchor=anchor),
                      info: text_writer(text)})
         bar.update(done - bar.n)
 
