@@ -122,6 +122,22 @@ def test_exposure_from_keys_the_png_on_another_image(scene_file, tmp_path):
     assert json.loads((tmp_path / "conv.json").read_text())["tonemap"]["exposure_from"] == str(ref) + ".exr"
 
 
+def test_reference_of_a_black_scene_warns_or_fails_with_strict(tmp_path):
+    """Point lights behind a smooth dielectric: volpathmis renders the object black. A warning, or with --strict
+    exit code 1, one line and nothing written."""
+    dark = tmp_path / "dark.xml"
+    assert run("scene", "--material", "skin1", "--size-mm", 4, "--boundary", "dielectric", "--width", 12,
+               "--height", 8, "--spp", 1, "-o", dark).exit_code == 0
+    result = run("reference", dark, "-o", tmp_path / "strict", "--strict", "--no-progress")
+    assert result.exit_code == 1, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: volpathmis pass 1 of 1 is black"), result.stderr
+    assert "Traceback" not in result.output and not list(tmp_path.glob("strict*"))
+    result = run("reference", dark, "-o", tmp_path / "loose", "--no-progress")
+    assert result.exit_code == 0 and "warning: volpathmis pass 1 of 1 is black" in result.stderr
+    assert read_image(tmp_path / "loose.exr").max() == 0
+
+
 def _scene_with(tmp_path, shape):
     path = tmp_path / "bad.xml"
     path.write_text(f"""<scene version="3.0.0">
