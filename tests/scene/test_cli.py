@@ -189,9 +189,64 @@ def _assert_clean_failure(result, message, folder):
 
 
 def test_scene_command_prints_an_object_fragment():
+    """Printed, the fragment names the mesh by its absolute path (no folder to be relative to) and takes its id from
+    the mesh's name."""
+    from convsss.scene.quick import demo_mesh
+
     result = run("scene", "--material", "marble", "--size-mm", 50, "--object-only")
     assert result.exit_code == 0
-    assert result.output.startswith('<shape type="obj" id="object">') and 'name="interior"' in result.output
+    assert result.output.startswith('<shape type="obj" id="bunny">') and 'name="interior"' in result.output
+    assert f'<string name="filename" value="{demo_mesh().resolve()}"/>' in result.output
+
+
+def test_scene_file_names_its_mesh_relative_to_itself(tmp_path, monkeypatch):
+    """-o scenes/drop.xml with meshes/milk-drop.obj: the file says ../meshes/milk-drop.obj and id "milk-drop", and
+    loads from any working directory (Mitsuba resolves against the scene's folder)."""
+    import shutil
+
+    from convsss.scene.loading import load_scene, scene_inputs
+    from convsss.scene.quick import demo_mesh
+
+    (tmp_path / "meshes").mkdir()
+    mesh = tmp_path / "meshes" / "milk-drop.obj"
+    shutil.copy(demo_mesh(), mesh)
+    out = tmp_path / "scenes" / "drop.xml"
+    fragment = tmp_path / "scenes" / "drop-object.xml"
+    assert run("scene", "--mesh", mesh, "--material", "wholemilk", "--size-mm", 10, "--width", 8, "--height", 8,
+               "-o", out).exit_code == 0
+    assert run("scene", "--mesh", mesh, "--material", "wholemilk", "--size-mm", 10, "--object-only",
+               "-o", fragment).exit_code == 0
+    for text in (out.read_text(), fragment.read_text()):
+        assert '<string name="filename" value="../meshes/milk-drop.obj"/>' in text and 'id="milk-drop"' in text
+    monkeypatch.chdir(tmp_path / "meshes")
+    assert mesh.resolve() in [p.resolve() for p in scene_inputs(out)]  # an output may never overwrite it
+    scene = load_scene(out)
+    assert [s.id() for s in scene.shapes()] == ["milk-drop"]
+
+
+@pytest.mark.parametrize("args, expected", [
+    (("--id", "cup"), 'id="cup"'),
+    (("--mesh", "3d scan.obj"), 'id="mesh_3d_scan"'),
+])
+def test_scene_object_id_is_given_or_made_valid(tmp_path, args, expected):
+    from convsss.scene.quick import demo_mesh
+
+    if "--mesh" in args:
+        (tmp_path / args[1]).write_bytes(demo_mesh().read_bytes())
+        args = ("--mesh", tmp_path / args[1])
+    result = run("scene", "--material", "marble", "--size-mm", 50, "--object-only", *args)
+    assert result.exit_code == 0, result.output
+    assert expected in result.output.splitlines()[0]
+
+
+@pytest.mark.parametrize("shape_id, message", [
+    ("2 cups", "--id '2 cups' is not allowed: an id is a letter or _ followed by letters, digits, _ or -"),
+    ("key_light", "--id 'key_light' is taken by the scene's key light"),
+])
+def test_bad_scene_ids_fail_in_one_line(tmp_path, shape_id, message):
+    result = run("scene", "--material", "marble", "--size-mm", 50, "--id", shape_id, "-o", tmp_path / "s.xml")
+    _assert_refused(result, message)
+    assert not (tmp_path / "s.xml").exists()
 
 
 def test_same_seed_same_png(scene_file, tmp_path):
