@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Set up convsss in ./.venv; safe to run again (it only does what is missing).
-#  1. a virtual environment with the package, its pinned dependencies and the dev tools;
+#  1. a virtual environment with the package, its dependencies and the dev tools at the versions pinned in
+#     constraints.txt (pyproject.toml states compatible ranges), and the pinned build tools (setuptools, wheel), so
+#     `.venv/bin/pip wheel --no-build-isolation .` works as well as the default isolated build;
 #  2. a libLLVM >= 17 for Dr.Jit's CPU backend: `apt-get install libllvm19` when the package finds none.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -11,10 +13,11 @@ if [ ! -x .venv/bin/python ]; then
     "$PYTHON" -m venv .venv
 fi
 if ! .venv/bin/python -c "import convsss, pytest" 2>/dev/null \
-   || [ pyproject.toml -nt .venv/.convsss-installed ]; then
+   || [ pyproject.toml -nt .venv/.convsss-installed ] || [ constraints.txt -nt .venv/.convsss-installed ]; then
     echo "convsss setup: installing the package and its pinned dependencies (a few minutes the first time)"
     .venv/bin/python -m pip install --quiet --upgrade pip
-    .venv/bin/python -m pip install --quiet -e ".[dev]"
+    .venv/bin/python -m pip install --quiet -c constraints.txt setuptools wheel
+    .venv/bin/python -m pip install --quiet -c constraints.txt --no-build-isolation -e ".[dev]"
     touch .venv/.convsss-installed
 fi
 

@@ -166,6 +166,24 @@ def test_cli_json(exr_pair, tmp_path):
     np.testing.assert_allclose(report["mean_ratio"], 1.25, rtol=1e-5)  # float32 EXR
     assert 0 < report["flip_mean"] < 1 and report["size"] == [64, 48]
     assert report["error_image"] == str(diff) and read_image(diff).shape == (48, 64, 3)
+    # A and B beside it, through one operator keyed on A: B = 1.25 A stays brighter (each keyed on itself, Reinhard
+    # would show them alike).
+    a_png, b_png = (read_image(p) for p in report["images"])
+    assert report["images"] == [str(diff.with_name("diff-reference.png")), str(diff.with_name("diff-test.png"))]
+    inside = read_image(exr_pair["mask"])[..., 0] > 0.5
+    assert np.all(b_png[inside].mean(axis=0) > 1.1 * a_png[inside].mean(axis=0))
+
+
+def test_cli_tonemapped_inputs_are_outputs_too(exr_pair, tmp_path):
+    """-o diff.png also writes diff-reference.png and diff-test.png: they may not be inputs, and nothing is written
+    when one is."""
+    clash = tmp_path / "x-test.png"
+    write_png(clash, np.ones((48, 64, 3)), method="none")
+    before = clash.read_bytes()
+    result = run("compare", exr_pair["a"], clash, "-o", tmp_path / "x.png")
+    assert result.exit_code == 2 and "is an input of this command" in result.output
+    assert clash.read_bytes() == before and not (tmp_path / "x.png").exists()
+    assert not (tmp_path / "x-reference.png").exists()
 
 
 def test_cli_table_and_block(exr_pair):

@@ -26,6 +26,23 @@ def test_reinhard_maps_log_average_to_key():
     assert np.all(np.diff(tonemap(np.linspace(0.01, 100, 30).reshape(1, 30, 1).repeat(3, 2))[0, :, 0]) > 0)
 
 
+def test_anchor_keys_the_operator():
+    """Reinhard's operator keys itself on each image, so a render and a reference 4x brighter look alike; keyed on
+    one anchor they keep their ratio: the scale is the anchor's key / log-average, the white point its maximum."""
+    rng = np.random.default_rng(2)
+    reference = rng.random((6, 6, 3)) + 0.1
+    render = 0.25 * reference
+    np.testing.assert_allclose(tonemap(render), tonemap(reference), rtol=1e-4)  # up to the 1e-6 in log(1e-6 + L)
+    alike = tonemap(render, anchor=reference)
+    assert np.all(alike < tonemap(reference))
+    # Low luminances map to about scale * L: a quarter of the reference's display values, where both are small.
+    dim = reference.sum(axis=2) < 0.6
+    np.testing.assert_allclose(alike[dim], 0.25 * tonemap(reference)[dim], rtol=0.2)
+    # The exposure scales the anchor too: the pair's relation does not change.
+    np.testing.assert_allclose(tonemap(render, exposure=2.0, anchor=reference), alike, rtol=1e-4)
+    np.testing.assert_allclose(tonemap(reference, anchor=reference), tonemap(reference), rtol=0)
+
+
 def test_exposure_and_encoding():
     np.testing.assert_allclose(tonemap(np.full((1, 1, 3), 0.25), "exposure", exposure=1), 0.5)
     assert srgb_encode(np.array([0.0, 1.0, 0.5])).tolist() == [0, 255, 188]

@@ -11,17 +11,27 @@ from .materials import Material, catalog, material
 from .profiles import DipoleProfile, Profile, TabulatedProfile
 
 __all__ = ["ConvsssError", "DipoleProfile", "Material", "Profile", "TabulatedProfile", "catalog", "material",
-           "register", "__version__"]
+           "register", "render", "__version__"]
 
 
-def register():
+def register(variant=None):
     """Register the ``convsss`` integrator with Mitsuba (imports Mitsuba only now); returns the mitsuba module.
 
-    Call it before loading a scene that names ``<integrator type="convsss">``::
+    ``variant`` None keeps the active Mitsuba variant, or sets ``llvm_ad_rgb`` when none is set; convsss renders in
+    ``llvm_ad_rgb`` or ``cuda_ad_rgb``, any other variant (requested or active) is a :class:`ConvsssError`. Call it
+    before loading a scene that names ``<integrator type="convsss">``::
 
         mi = convsss.register()
-        image = mi.render(mi.load_file("scene.xml"))
+        image = convsss.render(mi.load_file("scene.xml"))   # mi.render, with the integrator's own errors
     """
     from .scene import register as _register
 
-    return _register()
+    return _register(variant)
+
+
+def render(scene, *args, **kwargs):
+    """``mi.render(scene, ...)``, raising the integrator's own exception (e.g. a :class:`ConvsssError` with its
+    one-line message) where ``mi.render`` raises ``drjit.custom(...) ... (see above)``."""
+    from .scene import render as _render
+
+    return _render(scene, *args, **kwargs)

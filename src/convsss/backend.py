@@ -4,21 +4,45 @@ Every module that needs Mitsuba calls :func:`load_mitsuba` instead of ``import m
 ``shared/notes/mitsuba3.md`` is handled in one place.
 """
 
+import sys
 from contextlib import contextmanager
 
+from .errors import ConvsssError
 from .llvm import ensure_llvm
 
+#: The Mitsuba variants convsss runs in: Dr.Jit's JIT backends (the shading and the exitance lookups are Dr.Jit
+#: kernels) with RGB colours (the profiles are RGB). Mitsuba's wheels have no non-AD ``llvm_rgb``/``cuda_rgb``;
+#: ``scalar_*`` has no JIT, ``*_mono`` and ``*_spectral`` no RGB radiance.
+SUPPORTED_VARIANTS = ("llvm_ad_rgb", "cuda_ad_rgb")
+#: The variant set when none is active (runs on any CPU).
 DEFAULT_VARIANT = "llvm_ad_rgb"
 
 
-def load_mitsuba(variant=DEFAULT_VARIANT):
-    """Return the ``mitsuba`` module with ``variant`` set (LLVM variants get a usable libLLVM first)."""
-    if variant.startswith("llvm"):
+def active_variant():
+    """The Mitsuba variant set in this process, or None (Mitsuba not imported, or no variant set yet)."""
+    mi = sys.modules.get("mitsuba")
+    return mi.variant() if mi is not None else None
+
+
+def load_mitsuba(variant=None):
+    """Return the ``mitsuba`` module with a supported variant set (LLVM variants get a usable libLLVM first).
+
+    ``variant`` None keeps the active variant, or sets :data:`DEFAULT_VARIANT` when none is active; a requested or
+    active variant outside :data:`SUPPORTED_VARIANTS` is a :class:`~convsss.errors.ConvsssError`.
+    """
+    active = active_variant()
+    chosen = variant or active or DEFAULT_VARIANT
+    if chosen not in SUPPORTED_VARIANTS:
+        whose = "requested" if variant else "active"
+        raise ConvsssError(f"Mitsuba variant {chosen!r} ({whose}) is not supported: convsss renders in "
+                           f"{' or '.join(SUPPORTED_VARIANTS)} (mitsuba.set_variant(...) or "
+                           "convsss.register(variant=...))")
+    if chosen.startswith("llvm"):
         ensure_llvm()
     import mitsuba as mi
 
-    if mi.variant() != variant:
-        mi.set_variant(variant)
+    if active != chosen:
+        mi.set_variant(chosen)
     return mi
 
 

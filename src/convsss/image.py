@@ -71,10 +71,11 @@ def check_tonemap(method="reinhard", key=0.18, exposure=0.0):
         raise ConvsssError(f"exposure={exposure!r} is not allowed: the exposure (stops) must be finite")
 
 
-def tonemap(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
+def tonemap(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None, anchor=None):
     """Linear RGB (H, W, 3) to display values in [0, 1] (before sRGB encoding).
 
-    ``mask`` (H, W) restricts the log-average of the Reinhard operator to the pixels that matter (e.g. the object).
+    ``mask`` (H, W) restricts the log-average of the Reinhard operator to the pixels that matter (e.g. the object);
+    ``anchor``, another linear image, keys the operator instead of ``rgb`` (a render exposed like its reference).
     Bad settings raise :class:`~convsss.errors.ConvsssError` (:func:`check_tonemap`).
 
     Parameters
@@ -86,12 +87,24 @@ def tonemap(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
         method but ``none``.
     mask : array_like of bool, shape (H, W), optional
         The pixels whose log-average luminance keys the ``reinhard`` operator (default, or when empty: the non-black
-        pixels).
+        pixels), in ``anchor`` when it is given.
+    anchor : array_like, shape (H', W', C), C >= 3, optional
+        The linear image (in ``rgb``'s unit, any size) whose log-average luminance and maximum fix the ``reinhard``
+        operator's scale and white point, after the same ``2^exposure`` (default: ``rgb`` itself).
 
     Returns
     -------
     numpy.ndarray, shape (H, W, 3), float64
         Linear display values in [0, 1].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> dim, bright = np.full((2, 2, 3), 0.1), np.full((2, 2, 3), 10.0)
+    >>> float(tonemap(dim)[0, 0, 0]) == float(tonemap(bright)[0, 0, 0])      # each keyed on itself
+    True
+    >>> bool(tonemap(dim, anchor=bright)[0, 0, 0] < tonemap(bright)[0, 0, 0])   # exposed like ``bright``
+    True
     """
     check_tonemap(method, key, exposure)
     rgb = np.maximum(np.nan_to_num(np.asarray(rgb, dtype=np.float64)[..., :3]), 0.0)
@@ -100,7 +113,8 @@ def tonemap(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
     if method == "exposure":
         return np.clip(rgb * 2.0 ** float(exposure), 0.0, 1.0)
     exposed = rgb * 2.0 ** float(exposure)
-    return Reinhard(exposed, key, mask)(exposed)
+    keyed = exposed if anchor is None else np.asarray(anchor, dtype=np.float64) * 2.0 ** float(exposure)
+    return Reinhard(keyed, key, mask)(exposed)
 
 
 class Reinhard:
@@ -224,7 +238,7 @@ def exr_writer(rgb):
     return lambda path: bitmap.write(path, mi.Bitmap.FileFormat.OpenEXR)
 
 
-def png_writer(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
+def png_writer(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None, anchor=None):
     """``write(path)``, saving linear RGB (H, W, 3) tone-mapped (:func:`tonemap`) as an 8-bit sRGB PNG: one entry of
     :func:`convsss.files.write_files`.
 
@@ -232,7 +246,7 @@ def png_writer(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
     ----------
     rgb : array_like, shape (H, W, C), C >= 3
         Linear RGB in any radiometric unit.
-    method, key, exposure, mask
+    method, key, exposure, mask, anchor
         As in :func:`tonemap` (``mask``: bool, shape (H, W)).
 
     Returns
@@ -240,7 +254,7 @@ def png_writer(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
     callable
         ``write(path)``, which saves the PNG at ``path``.
     """
-    return display_png_writer(srgb_encode(tonemap(rgb, method, key, exposure, mask)))
+    return display_png_writer(srgb_encode(tonemap(rgb, method, key, exposure, mask, anchor)))
 
 
 def write_exr(path, rgb):
@@ -261,7 +275,7 @@ def write_exr(path, rgb):
     return atomic_write(path, exr_writer(rgb))
 
 
-def write_png(path, rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
+def write_png(path, rgb, method="reinhard", key=0.18, exposure=0.0, mask=None, anchor=None):
     """Tone-map linear RGB (H, W, 3) and write an 8-bit sRGB PNG, atomically. Returns the path.
 
     Parameters
@@ -270,7 +284,7 @@ def write_png(path, rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
         The file to write.
     rgb : array_like, shape (H, W, C), C >= 3
         Linear RGB in any radiometric unit.
-    method, key, exposure, mask
+    method, key, exposure, mask, anchor
         As in :func:`tonemap` (``mask``: bool, shape (H, W)).
 
     Returns
@@ -278,7 +292,7 @@ def write_png(path, rgb, method="reinhard", key=0.18, exposure=0.0, mask=None):
     Path
         ``path``.
     """
-    return atomic_write(path, png_writer(rgb, method, key, exposure, mask))
+    return atomic_write(path, png_writer(rgb, method, key, exposure, mask, anchor))
 
 
 def read_image(path):

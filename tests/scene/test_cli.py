@@ -92,6 +92,52 @@ def test_reference_saves_every_pass(scene_file, tmp_path):
     assert read_image(out.with_suffix(".exr")).max() > 0
 
 
+def test_exposure_from_keys_the_png_on_another_image(scene_file, tmp_path):
+    """--exposure-from IMAGE: the PNG keyed on IMAGE (here a reference 4x as bright: darker than keyed on itself);
+    the EXR unchanged."""
+    from convsss.image import write_exr, write_png
+
+    ref = tmp_path / "ref"
+    assert run("reference", scene_file, "-o", ref, "--spp", 1, "--pass-spp", 1, "--no-progress").exit_code == 0
+    linear = read_image(ref.with_suffix(".exr"))
+    write_exr(tmp_path / "bright.exr", 4.0 * linear)
+    dim = tmp_path / "dim"
+    result = run("reference", scene_file, "-o", dim, "--spp", 1, "--pass-spp", 1, "--no-progress",
+                 "--exposure-from", tmp_path / "bright.exr")
+    assert result.exit_code == 0, result.output
+    np.testing.assert_allclose(read_image(dim.with_suffix(".exr")), linear, rtol=1e-5)  # same seed (up to 1e-7)
+    png, own = read_image(dim.with_suffix(".png")), read_image(ref.with_suffix(".png"))
+    assert png.mean() < 0.7 * own.mean()
+    expected = read_image(write_png(tmp_path / "expected-dim.png", linear, anchor=4.0 * linear))
+    np.testing.assert_allclose(png, expected, atol=0.01)  # the EXR is float32, the PNG made from float64
+    out = tmp_path / "conv"
+    result = run("render", scene_file, "-o", out, "--no-progress", "--exposure-from", ref.with_suffix(".exr"),
+                 "--stats", tmp_path / "conv.json")
+    assert result.exit_code == 0, result.output
+    expected = read_image(write_png(tmp_path / "expected-conv.png", read_image(out.with_suffix(".exr")),
+                                    anchor=linear))
+    np.testing.assert_allclose(read_image(out.with_suffix(".png")), expected, atol=0.01)
+    assert not np.allclose(read_image(out.with_suffix(".png")),
+                           read_image(write_png(tmp_path / "own.png", read_image(out.with_suffix(".exr")))), atol=0.01)
+    assert json.loads((tmp_path / "conv.json").read_text())["tonemap"]["exposure_from"] == str(ref) + ".exr"
+
+
+def test_reference_of_a_black_scene_warns_or_fails_with_strict(tmp_path):
+    """Point lights behind a smooth dielectric: volpathmis renders the object black. A warning, or with --strict
+    exit code 1, one line and nothing written."""
+    dark = tmp_path / "dark.xml"
+    assert run("scene", "--material", "skin1", "--size-mm", 4, "--boundary", "dielectric", "--width", 12,
+               "--height", 8, "--spp", 1, "-o", dark).exit_code == 0
+    result = run("reference", dark, "-o", tmp_path / "strict", "--strict", "--no-progress")
+    assert result.exit_code == 1, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: volpathmis pass 1 of 1 is black"), result.stderr
+    assert "Traceback" not in result.output and not list(tmp_path.glob("strict*"))
+    result = run("reference", dark, "-o", tmp_path / "loose", "--no-progress")
+    assert result.exit_code == 0 and "warning: volpathmis pass 1 of 1 is black" in result.stderr
+    assert read_image(tmp_path / "loose.exr").max() == 0
+
+
 def _scene_with(tmp_path, shape):
     path = tmp_path / "bad.xml"
     path.write_text(f"""<scene version="3.0.0">
@@ -143,9 +189,64 @@ def _assert_clean_failure(result, message, folder):
 
 
 def test_scene_command_prints_an_object_fragment():
+    """Printed, the fragment names the mesh by its absolute path (no folder to be relative to) and takes its id from
+    the mesh's name."""
+    from convsss.scene.quick import demo_mesh
+
     result = run("scene", "--material", "marble", "--size-mm", 50, "--object-only")
     assert result.exit_code == 0
-    assert result.output.startswith('<shape type="obj" id="object">') and 'name="interior"' in result.output
+    assert result.output.startswith('<shape type="obj" id="bunny">') and 'name="interior"' in result.output
+    assert f'<string name="filename" value="{demo_mesh().resolve()}"/>' in result.output
+
+
+def test_scene_file_names_its_mesh_relative_to_itself(tmp_path, monkeypatch):
+    """-o scenes/drop.xml with meshes/milk-drop.obj: the file says ../meshes/milk-drop.obj and id "milk-drop", and
+    loads from any working directory (Mitsuba resolves against the scene's folder)."""
+    import shutil
+
+    from convsss.scene.loading import load_scene, scene_inputs
+    from convsss.scene.quick import demo_mesh
+
+    (tmp_path / "meshes").mkdir()
+    mesh = tmp_path / "meshes" / "milk-drop.obj"
+    shutil.copy(demo_mesh(), mesh)
+    out = tmp_path / "scenes" / "drop.xml"
+    fragment = tmp_path / "scenes" / "drop-object.xml"
+    assert run("scene", "--mesh", mesh, "--material", "wholemilk", "--size-mm", 10, "--width", 8, "--height", 8,
+               "-o", out).exit_code == 0
+    assert run("scene", "--mesh", mesh, "--material", "wholemilk", "--size-mm", 10, "--object-only",
+               "-o", fragment).exit_code == 0
+    for text in (out.read_text(), fragment.read_text()):
+        assert '<string name="filename" value="../meshes/milk-drop.obj"/>' in text and 'id="milk-drop"' in text
+    monkeypatch.chdir(tmp_path / "meshes")
+    assert mesh.resolve() in [p.resolve() for p in scene_inputs(out)]  # an output may never overwrite it
+    scene = load_scene(out)
+    assert [s.id() for s in scene.shapes()] == ["milk-drop"]
+
+
+@pytest.mark.parametrize("args, expected", [
+    (("--id", "cup"), 'id="cup"'),
+    (("--mesh", "3d scan.obj"), 'id="mesh_3d_scan"'),
+])
+def test_scene_object_id_is_given_or_made_valid(tmp_path, args, expected):
+    from convsss.scene.quick import demo_mesh
+
+    if "--mesh" in args:
+        (tmp_path / args[1]).write_bytes(demo_mesh().read_bytes())
+        args = ("--mesh", tmp_path / args[1])
+    result = run("scene", "--material", "marble", "--size-mm", 50, "--object-only", *args)
+    assert result.exit_code == 0, result.output
+    assert expected in result.output.splitlines()[0]
+
+
+@pytest.mark.parametrize("shape_id, message", [
+    ("2 cups", "--id '2 cups' is not allowed: an id is a letter or _ followed by letters, digits, _ or -"),
+    ("key_light", "--id 'key_light' is taken by the scene's key light"),
+])
+def test_bad_scene_ids_fail_in_one_line(tmp_path, shape_id, message):
+    result = run("scene", "--material", "marble", "--size-mm", 50, "--id", shape_id, "-o", tmp_path / "s.xml")
+    _assert_refused(result, message)
+    assert not (tmp_path / "s.xml").exists()
 
 
 def test_same_seed_same_png(scene_file, tmp_path):
@@ -199,6 +300,8 @@ QUICK = ("--mesh", "bunny.obj", "--material", "wholemilk", "--size-mm", 10)
     ("render", "studio.xml", "-o", "out", "--profile", "skin.csv", "--stats", "skin.csv"),
     ("render", *QUICK, "-o", "out", "--stats", "bunny.obj"),
     ("reference", "studio.xml", "-o", "studio.exr"),
+    ("reference", "studio.xml", "-o", "ref", "--exposure-from", "ref.exr"),
+    ("render", "studio.xml", "-o", "out", "--exposure-from", "out.exr"),
     ("scene", *QUICK, "-o", "bunny.obj"),
 ])
 def test_outputs_never_overwrite_inputs(studio, args):
@@ -236,6 +339,8 @@ def test_read_only_output_folder_fails_before_the_render(studio):
     (("--exposure", "nan"), "exposure=nan is not allowed"),
     (("--key", 0), "key=0.0 is not allowed"),
     (("--key", -1), "key=-1.0 is not allowed"),
+    (("--exposure-from", "nope.exr"), "image 'nope.exr' does not exist"),
+    (("--exposure-from", "studio.exr", "--tonemap", "exposure"), "it needs --tonemap reinhard, not exposure"),
 ])
 @pytest.mark.parametrize("command", ["render", "reference"])
 def test_bad_option_values_fail_in_one_line(studio, command, args, message):

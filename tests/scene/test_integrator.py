@@ -206,6 +206,18 @@ def test_camera_inside_an_object_or_no_camera_is_refused(mi, sphere_scene, tmp_p
         scene.integrator().render(scene, scene.sensors()[0])
 
 
+def test_render_raises_the_integrators_own_error(mi, sphere_scene):
+    """``mi.render`` hides the integrator's exception behind ``drjit.custom(...) (see above)``; ``convsss.render``
+    raises the exception itself, its one-line message intact."""
+    scene = mi.load_dict(sphere_scene(extra={"around": _bar(mi, 0.0, 16.0, 4.0)}))
+    with pytest.raises(RuntimeError, match=r"drjit\.custom") as wrapped:
+        mi.render(scene)
+    assert not isinstance(wrapped.value, convsss.ConvsssError)
+    with pytest.raises(convsss.ConvsssError, match="camera is inside translucent shape 'around'") as raised:
+        convsss.render(scene)
+    assert raised.value.__suppress_context__
+
+
 def _two_spheres(mi, sphere_scene, kinds):
     """The tiny scene with two 1 mm skin spheres at x = -2.2 and +2.2 mm, each ``plain`` or an ``instance`` of one
     shapegroup holding a sphere at the origin."""

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from ..files import check_outputs, json_ready
+from ..files import check_outputs, json_ready, write_files
 from .main import cli
 
 _ROWS = (("rmse", "RMSE"), ("relmse", "relative MSE"), ("mean_rel_error", "mean relative error"),
@@ -22,7 +22,8 @@ _ROWS = (("rmse", "RMSE"), ("relmse", "relative MSE"), ("mean_rel_error", "mean 
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               help="Write a false-colour PNG of the signed relative luminance error (B - A) / A: blue where TEST is "
                    "darker, white where equal, red where brighter, saturated at +-R (--range); black off the "
-                   "object; one pixel per block with --block.")
+                   "object; one pixel per block with --block. Beside it, OUT-reference.png and OUT-test.png: A and "
+                   "B tone-mapped alike (one Reinhard operator, key 0.18 on A's object pixels).")
 @click.option("--range", "limit", type=float, default=0.2, show_default=True, metavar="R",
               help="Relative error shown fully saturated in the --output image (0.2 = +-20 %).")
 @click.option("--block", type=click.IntRange(min=1), default=1, show_default=True, metavar="K",
@@ -32,7 +33,8 @@ _ROWS = (("rmse", "RMSE"), ("relmse", "relative MSE"), ("mean_rel_error", "mean 
               help="Print one JSON object instead of a table: reference, test, mask, size [W, H], block, pixels, "
                    "relative_floor, and per channel (RGB 3-lists; null where undefined) rmse, relmse, "
                    "mean_rel_error, mean_reference, mean_test, max_reference, max_test, mean_ratio; plus the "
-                   "scalar flip_mean and error_image (the --output path or null).")
+                   "scalar flip_mean, error_image (the --output path or null) and images (the two tone-mapped "
+                   "inputs' paths, or null).")
 def compare(reference, test, mask_path, output, limit, block, as_json):
     """Compare TEST (B) against REFERENCE (A), two linear images (EXR; PNG is decoded to linear) of one size.
 
@@ -42,22 +44,28 @@ def compare(reference, test, mask_path, output, limit, block, as_json):
     tone-mapped with one Reinhard operator (key 0.18 on the reference's log-average, shared white point, sRGB).
     """
     from ..compare import compare as compare_images
-    from ..compare import error_image
-    from ..image import read_image, write_png
+    from ..compare import error_image, object_mask
+    from ..image import png_writer, read_image
 
+    pictures = None
     if output is not None:
-        check_outputs([output], [p for p in (reference, test, mask_path) if p is not None])
+        pictures = [output.with_name(f"{output.stem}-{side}.png") for side in ("reference", "test")]
+        check_outputs([output, *pictures], [p for p in (reference, test, mask_path) if p is not None])
     a, b = read_image(reference), read_image(test)
     mask = None if mask_path is None else read_image(mask_path)
     labels = (reference.name, test.name)
     result = compare_images(a, b, mask, block, labels)
     if output is not None:
-        write_png(output, error_image(a, b, mask, block, limit, labels), method="none")
+        inside = object_mask(a, mask)  # one operator for both: keyed on A's object pixels, A's white point
+        write_files({output: png_writer(error_image(a, b, mask, block, limit, labels), method="none"),
+                     pictures[0]: png_writer(a, mask=inside),
+                     pictures[1]: png_writer(b, mask=inside, anchor=a)})
     if as_json:
         report = {"reference": str(reference), "test": str(test),
                   "mask": None if mask_path is None else str(mask_path),
                   "size": [a.shape[1], a.shape[0]], **result,
-                  "error_image": None if output is None else str(output)}
+                  "error_image": None if output is None else str(output),
+                  "images": None if pictures is None else [str(p) for p in pictures]}
         click.echo(json.dumps(json_ready(report), indent=1))
         return
     unit = f"{block}x{block} blocks" if block > 1 else "pixels"
@@ -68,4 +76,5 @@ def compare(reference, test, mask_path, output, limit, block, as_json):
         click.echo(f"{label:<22}" + "".join(f"{v:>12.5g}" for v in result[key]))
     click.echo(f"{'FLIP mean':<22}{result['flip_mean']:>12.5g}")
     if output is not None:
-        click.echo(f"error image: {output} (relative luminance error, +-{limit:g})")
+        click.echo(f"error image: {output} (relative luminance error, +-{limit:g}); A and B exposed alike: "
+                   f"{pictures[0]}, {pictures[1]}")

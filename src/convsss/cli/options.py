@@ -69,7 +69,8 @@ def _check_tonemap_option(ctx, param, value):
 
 
 def tonemap_options(func):
-    """``--tonemap``, ``--key`` and ``--exposure`` for the PNG (shared by commands); bad values fail at once."""
+    """``--tonemap``, ``--key``, ``--exposure`` and ``--exposure-from`` for the PNG (shared by commands); bad values
+    fail at once (``--exposure-from`` with :func:`exposure_anchor`)."""
     options = [
         click.option("--tonemap", type=click.Choice(TONEMAPS), default="reinhard", show_default=True,
                      help="PNG tone mapping: Reinhard's photographic operator, exposure only, or none (clipped)."),
@@ -77,10 +78,25 @@ def tonemap_options(func):
                      help="Key value of the Reinhard operator (> 0)."),
         click.option("--exposure", type=float, default=0.0, show_default=True, callback=_check_tonemap_option,
                      help="Exposure in stops, applied before tone mapping."),
+        click.option("--exposure-from", type=click.Path(dir_okay=False), metavar="IMAGE",
+                     help="Key the Reinhard operator (scale and white point) on IMAGE, a linear EXR, instead of this "
+                          "image: a render and its reference exposed alike."),
     ]
     for option in reversed(options):
         func = option(func)
     return func
+
+
+def exposure_anchor(exposure_from, tonemap):
+    """The image ``--exposure-from`` names (linear RGB), or None; one-line errors for a missing file or a tone
+    mapping it cannot key."""
+    if exposure_from is None:
+        return None
+    if tonemap != "reinhard":
+        raise ConvsssError(f"--exposure-from keys the Reinhard operator: it needs --tonemap reinhard, not {tonemap}")
+    from ..image import read_image
+
+    return read_image(exposure_from)
 
 
 def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height):

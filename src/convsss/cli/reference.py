@@ -2,13 +2,22 @@
 
 import json
 import time
+import warnings
 
 import click
 
 from ..errors import ConvsssError
 from ..files import check_outputs, text_writer, write_files
 from .main import cli
-from .options import PROGRESS, load_source, output_stem, scene_source_options, source_inputs, tonemap_options
+from .options import (
+    PROGRESS,
+    exposure_anchor,
+    load_source,
+    output_stem,
+    scene_source_options,
+    source_inputs,
+    tonemap_options,
+)
 
 
 @cli.command()
@@ -18,16 +27,20 @@ from .options import PROGRESS, load_source, output_stem, scene_source_options, s
                    "rewritten together after every pass.")
 @click.option("--pass-spp", type=int, default=16, show_default=True,
               help="Samples per pixel of each pass; the image so far is saved after each pass.")
+@click.option("--strict", is_flag=True,
+              help="A pass black over every pixel of the translucent objects is an error (exit code 1, nothing "
+                   "written) instead of a warning.")
 @tonemap_options
 @PROGRESS
 def reference(scene_file, mesh, material, size_mm, floor, boundary, width, height, spp, seed, output, pass_spp,
-              tonemap, key, exposure, progress):
+              strict, tonemap, key, exposure, exposure_from, progress):
     """Render SCENE_FILE with Mitsuba's volumetric path tracer volpathmis: the ground truth of `convsss render`.
 
     Russian roulette is off and paths are unbounded. --spp is the total (default: the scene's sampler), rendered in
     passes of --pass-spp; after every pass OUT.exr/OUT.png hold the mean so far, so a long run can be stopped
     (Ctrl-C keeps the last complete pass).
     A point light behind a smooth dielectric renders black in a path tracer: use a null boundary with point lights.
+    A pass black over every pixel where the camera sees a translucent object warns (with --strict: exit code 1).
 
     \b
     Example:
@@ -36,7 +49,7 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
     from tqdm import tqdm
 
     from ..image import exr_writer, png_writer
-    from ..scene.reference import render_reference
+    from ..scene.reference import BlackPassWarning, render_reference
 
     if pass_spp < 1:
         raise ConvsssError(f"--pass-spp {pass_spp} is not allowed: it must be >= 1")
@@ -45,7 +58,8 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
     start = time.perf_counter()
     stem = output_stem(output)
     exr, png, info = (stem.with_suffix(suffix) for suffix in (".exr", ".png", ".json"))
-    check_outputs([exr, png, info], source_inputs(scene_file, mesh))
+    check_outputs([exr, png, info], [*source_inputs(scene_file, mesh), *([exposure_from] if exposure_from else [])])
+    anchor = exposure_anchor(exposure_from, tonemap)
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height)
     total_spp = spp if spp is not None else (16 if scene_file is None else scene.sensors()[0].sampler().sample_count())
     bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress)
@@ -56,12 +70,19 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
             "rr_depth": "off", "max_depth": -1, "spp_done": done, "spp_requested": total_spp,
             "passes_done": index + 1, "passes": n_passes, "seed": seed,
             "seconds": time.perf_counter() - start}, indent=1)
-        write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure),
+        write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure, anchor=anchor),
                      info: text_writer(text)})
         bar.update(done - bar.n)
 
     try:
-        render_reference(scene, total_spp, pass_spp, seed, save)
+        with warnings.catch_warnings():
+            if strict:
+                warnings.simplefilter("error", BlackPassWarning)
+            render_reference(scene, total_spp, pass_spp, seed, save)
+    except BlackPassWarning as black:
+        bar.close()
+        click.echo(f"error: {black}", err=True)
+        click.get_current_context().exit(1)
     finally:
         bar.close()
     click.echo(f"wrote {exr} and {png} "

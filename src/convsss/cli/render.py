@@ -17,6 +17,7 @@ from ..files import check_outputs, json_ready, write_files
 from .main import cli
 from .options import (
     PROGRESS,
+    exposure_anchor,
     integrator_options,
     load_source,
     output_stem,
@@ -64,7 +65,7 @@ class StageProgress:
                    "count, and the object's size in mean free paths and diffusion lengths.")
 @PROGRESS
 def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, spp, seed, output, tonemap, key,
-           exposure, stats_path, progress, **integrator):
+           exposure, exposure_from, stats_path, progress, **integrator):
     """Render SCENE_FILE (a Mitsuba 3 XML scene) with the convsss integrator, whatever integrator the file names.
 
     A translucent object is a shape with an interior 'homogeneous' medium and a null, dielectric or
@@ -92,7 +93,8 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
     stem = output_stem(output)
     exr, png = stem.with_suffix(".exr"), stem.with_suffix(".png")
     check_outputs([exr, png, *([stats_path] if stats_path else [])],
-                  [*source_inputs(scene_file, mesh), *profiles])
+                  [*source_inputs(scene_file, mesh), *profiles, *([exposure_from] if exposure_from else [])])
+    anchor = exposure_anchor(exposure_from, tonemap)
 
     from ..backend import load_mitsuba
 
@@ -122,7 +124,7 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
                  "quick": {"mesh": str(mesh), "material": material, "size_mm": size_mm, "floor": floor,
                            "boundary": boundary} if quick else None,
                  "seed": seed, "spp": spp_used, "outputs": {"exr": str(exr), "png": str(png)},
-                 "tonemap": {"method": tonemap, "key": key, "exposure": exposure},
+                 "tonemap": {"method": tonemap, "key": key, "exposure": exposure, "exposure_from": exposure_from},
                  **integ.stats, "seconds": seconds}
 
         def finish(tmp=None):
@@ -132,7 +134,7 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
             if tmp is not None:
                 Path(tmp).write_text(json.dumps(json_ready(stats), indent=1))
 
-        writers = {exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure)}
+        writers = {exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure, anchor=anchor)}
         if stats_path:
             writers[stats_path] = finish
         write_files(writers)

@@ -1,11 +1,40 @@
 """``convsss scene``: write a translucent object, from a preset and a size, as a Mitsuba 3 scene file."""
 
+import os
+import re
 from pathlib import Path
 
 import click
 
+from ..errors import ConvsssError
 from ..files import check_outputs, write_text
 from .main import cli
+
+#: What an object's id may be: a name Mitsuba, XML and ``--profile NAME=...`` all take (no dots, no spaces).
+ID_PATTERN = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
+
+
+def object_id(mesh_path, given=None):
+    """The object's id: ``given``, or the mesh file's name without its extension, made a valid id."""
+    if given is not None:
+        if not ID_PATTERN.fullmatch(given):
+            raise ConvsssError(f"--id {given!r} is not allowed: an id is a letter or _ followed by letters, digits, "
+                               "_ or -")
+        return given
+    name = re.sub(r"[^A-Za-z0-9_-]", "_", Path(mesh_path).stem)
+    return name if ID_PATTERN.fullmatch(name) else f"mesh_{name}"
+
+
+def mesh_filename(mesh_path, output):
+    """The mesh's path as the scene file names it: relative to the output file's folder (Mitsuba resolves a scene's
+    relative file names there), absolute when printed or on another drive."""
+    mesh_path = Path(mesh_path).resolve()
+    if output is None:
+        return str(mesh_path)
+    try:
+        return Path(os.path.relpath(mesh_path, Path(output).resolve().parent)).as_posix()
+    except ValueError:  # another drive (Windows)
+        return str(mesh_path)
 
 
 @cli.command()
@@ -25,13 +54,17 @@ from .main import cli
 @click.option("--spp", type=int, default=16, show_default=True, help="Samples per pixel of the scene's sampler.")
 @click.option("--object-only", is_flag=True,
               help="Write only the object's <shape> element (medium and BSDF inside), to paste into your own scene.")
-def scene(mesh, material, size_mm, output, boundary, unit_mm, floor, width, height, spp, object_only):
+@click.option("--id", "shape_id",
+              help="The object's id (its name in `convsss render --profile ID=...` and the stats). Default: the mesh "
+                   "file's name without extension.")
+def scene(mesh, material, size_mm, output, boundary, unit_mm, floor, width, height, spp, object_only, shape_id):
     """Write a scene with a translucent object made of a preset material, scaled to --size-mm.
 
     The medium is written in the sigma_t/scale/albedo form that Mitsuba's RGB mode needs (sigma_t <= 1 and the
     largest value in scale, per scene unit); the scene has a camera, a key light, a back light and Mitsuba's
     volpathmis without Russian roulette as integrator, so it renders as it is with plain Mitsuba (ground truth),
-    with `convsss render SCENE` and with `convsss reference SCENE`.
+    with `convsss render SCENE` and with `convsss reference SCENE`. With -o the mesh's path is written relative to
+    the output's folder (keep them together when moving them); printed, it is absolute.
 
     \b
     Examples:
@@ -43,11 +76,19 @@ def scene(mesh, material, size_mm, output, boundary, unit_mm, floor, width, heig
     from ..scene.xmlwriter import object_to_xml, scene_to_xml
 
     mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)
+    name = object_id(mesh_path, shape_id)
     if output:
         check_outputs([output], [mesh_path])
     scene_dict = quick_scene(mesh_path, lookup_material(material), size_mm, width, height, spp, floor, boundary,
                              unit_mm)
-    text = object_to_xml("object", scene_dict["object"]) if object_only else scene_to_xml(scene_dict)
+    shape = {**scene_dict["object"], "filename": mesh_filename(mesh_path, output)}
+    if object_only:
+        text = object_to_xml(name, shape)
+    else:
+        if name != "object" and name in scene_dict:
+            raise ConvsssError(f"--id {name!r} is taken by the scene's {name.replace('_', ' ')}: choose another id")
+        text = scene_to_xml({(name if key == "object" else key): (shape if key == "object" else value)
+                             for key, value in scene_dict.items()})
     if output:
         write_text(output, text)
         click.echo(f"wrote {output}")

@@ -17,11 +17,22 @@ Only :mod:`.params` and :mod:`.materials` are imported here; the others load Mit
 from .materials import boundary_dict, medium_dict, medium_parameters, translucent
 from .params import RenderParams
 
-__all__ = ["RenderParams", "boundary_dict", "medium_dict", "medium_parameters", "register", "translucent"]
+__all__ = ["RenderParams", "boundary_dict", "medium_dict", "medium_parameters", "register", "render", "translucent"]
 
 
-def register():
-    """Register the ``convsss`` integrator with Mitsuba; returns the mitsuba module."""
+def register(variant=None):
+    """Register the ``convsss`` integrator with Mitsuba in ``variant`` (None: the active one, or the default);
+    returns the mitsuba module. See :func:`convsss.backend.load_mitsuba` for the variants."""
+    from ..backend import load_mitsuba
+
+    load_mitsuba(variant)
     from .integrator import register as _register
 
     return _register()
+
+
+def render(scene, *args, **kwargs):
+    """``mi.render`` with the integrator's own exceptions (see :func:`.integrator.render`)."""
+    from .integrator import render as _render
+
+    return _render(scene, *args, **kwargs)

@@ -35,6 +35,8 @@ from .params import RenderParams, plugin_parameters
 from .shading import Shader
 
 mi = load_mitsuba()
+#: The variant this module's classes were built in (a Mitsuba class belongs to one variant).
+VARIANT = mi.variant()
 
 
 class VisibilityWarning(UserWarning):
@@ -292,5 +294,24 @@ ConvsssIntegrator.__doc__ = ConvsssIntegrator.__doc__.replace("{table}", plugin_
 
 def register():
     """Register ``convsss`` with Mitsuba (``<integrator type="convsss">``); call before loading a scene."""
+    if mi.variant() != VARIANT:
+        raise ConvsssError(f"convsss was loaded in Mitsuba variant {VARIANT!r} and this process now uses "
+                           f"{mi.variant()!r}: one process renders in one variant; start a new one")
     mi.register_integrator("convsss", lambda props: ConvsssIntegrator(props))
     return mi
+
+
+def render(scene, *args, **kwargs):
+    """``mi.render(scene, ...)``, raising the integrator's own exception when its ``render`` fails.
+
+    In JIT variants ``mi.render`` runs the integrator inside ``drjit.custom``, which replaces any exception by a
+    ``RuntimeError`` "drjit.custom(...): error while performing a custom differentiable operation. (see above)"
+    whose ``__cause__`` is the real one (a :class:`~convsss.errors.ConvsssError` with its one-line message).
+    """
+    try:
+        return mi.render(scene, *args, **kwargs)
+    except RuntimeError as error:
+        cause = error.__cause__
+        if cause is None or not str(error).startswith("drjit.custom("):
+            raise
+        raise cause.with_traceback(cause.__traceback__) from None

@@ -6,11 +6,14 @@ runs in passes of ``pass_spp`` samples with different seeds; after each pass the
 callback, so a long run can be stopped and what it has so far is kept.
 
 Mind (DESIGN.md): a point light behind a smooth dielectric cannot be reached by a unidirectional path tracer, so
-such a scene renders black here; use a ``null`` boundary with point lights, or area / environment lights.
+such a scene renders black here; use a ``null`` boundary with point lights, or area / environment lights. A pass
+that is black over every pixel where the camera sees a translucent object raises a :class:`BlackPassWarning`.
 """
 
 import math
+import warnings
 
+import drjit as dr
 import numpy as np
 
 from ..backend import load_mitsuba
@@ -18,6 +21,33 @@ from ..errors import ConvsssError
 
 #: Russian roulette starts at this depth, i.e. never in practice.
 NO_RUSSIAN_ROULETTE = 1 << 30
+
+
+class BlackPassWarning(UserWarning):
+    """A ``volpathmis`` pass is black over every pixel where the camera sees a translucent object."""
+
+
+def translucent_pixels(scene, sensor=0):
+    """(H, W) bool over the sensor's crop window: pixels whose centre ray first hits a shape with an interior medium.
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+    sensor : int or mitsuba.Sensor
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W), bool
+    """
+    mi = load_mitsuba()
+    sensor = scene.sensors()[sensor] if isinstance(sensor, int) else sensor
+    width, height = (int(n) for n in sensor.film().crop_size())
+    y, x = np.mgrid[0:height, 0:width]
+    centre = mi.Point2f(((x.ravel() + 0.5) / width).astype(np.float32), ((y.ravel() + 0.5) / height).astype(np.float32))
+    ray, _ = sensor.sample_ray(0.0, 0.5, centre, mi.Point2f(0.5, 0.5))
+    si = scene.ray_intersect(ray)
+    inside = si.is_valid() & (dr.reinterpret_array(mi.UInt32, si.shape.interior_medium()) != 0)
+    return inside.numpy().reshape(height, width)
 
 
 def reference_integrator():
@@ -47,6 +77,12 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
     -------
     numpy.ndarray, shape (H, W, 3), float64
         The mean over all passes of the film's linear RGB (the scene's radiance unit).
+
+    Warns
+    -----
+    BlackPassWarning
+        Once, for the first pass that is zero over every pixel where the camera sees a translucent object
+        (:func:`translucent_pixels`), before ``on_pass`` gets it; turned into an error it stops the run there.
     """
     spp, pass_spp = int(spp), int(pass_spp)
     if spp < 1 or pass_spp < 1:
@@ -54,11 +90,18 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
     mi = load_mitsuba()
     integrator = reference_integrator()
     n_passes = math.ceil(spp / pass_spp)
-    total, done = None, 0
+    objects = translucent_pixels(scene)
+    total, done, warned = None, 0, False
     for k in range(n_passes):
         this = min(pass_spp, spp - done)
         image = np.array(mi.render(scene, integrator=integrator, spp=this, seed=(seed * 1_000_003 + k) % 2**32),
                          dtype=np.float64)[..., :3]
+        if not warned and objects.any() and not np.any(image[objects] > 0):
+            warned = True
+            warnings.warn(f"volpathmis pass {k + 1} of {n_passes} is black over all {int(objects.sum())} pixels "
+                          "where the camera sees a translucent object: a path tracer cannot reach a point light "
+                          "through a smooth dielectric; use a null boundary with point lights, or area or "
+                          "environment lights", BlackPassWarning, stacklevel=2)
         total = image * this if total is None else total + image * this
         done += this
         if on_pass is not None:

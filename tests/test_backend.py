@@ -1,0 +1,88 @@
+"""Which Mitsuba variant convsss renders in. Variants are switched in subprocesses: a switch in this process would
+change the variant every other test runs in."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import convsss
+from convsss.backend import DEFAULT_VARIANT, SUPPORTED_VARIANTS
+
+# Each snippet prints one JSON line: the variant after each step and the message of each error.
+PROLOGUE = """
+import json, convsss
+from convsss.llvm import ensure_llvm
+ensure_llvm()                      # a user whose Mitsuba finds LLVM
+import mitsuba as mi
+out = {}
+def attempt(name, call):
+    try:
+        call()
+        out[name] = "ok"
+    except convsss.ConvsssError as error:
+        out[name] = "ConvsssError: " + str(error)
+    out[name + " variant"] = mi.variant()
+"""
+
+
+def _run(code):
+    env = {**os.environ, "PYTHONPATH": str(Path(convsss.__file__).parents[1])}
+    proc = subprocess.run([sys.executable, "-c", PROLOGUE + code + "\nprint(json.dumps(out))"], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def switching():
+    return _run("""
+mi.set_variant("scalar_rgb")
+attempt("scalar", convsss.register)
+mi.set_variant("llvm_ad_spectral")
+attempt("spectral", convsss.register)
+attempt("requested mono", lambda: convsss.register("llvm_ad_mono"))
+attempt("requested rgb", lambda: convsss.register("llvm_ad_rgb"))
+attempt("load", lambda: mi.load_dict({"type": "convsss"}))
+import convsss.backend
+convsss.backend.SUPPORTED_VARIANTS += ("llvm_ad_mono",)   # a second variant the loaded classes were not built in
+mi.set_variant("llvm_ad_mono")
+attempt("second variant", convsss.register)
+""")
+
+
+def test_supported_variants_are_jit_rgb():
+    assert DEFAULT_VARIANT in SUPPORTED_VARIANTS
+    assert all(v.endswith("_rgb") and not v.startswith("scalar") for v in SUPPORTED_VARIANTS)
+
+
+def test_no_active_variant_sets_the_default():
+    out = _run('attempt("register", convsss.register)')
+    assert out == {"register": "ok", "register variant": DEFAULT_VARIANT}
+
+
+def test_active_supported_variant_is_kept():
+    out = _run(f'mi.set_variant("{DEFAULT_VARIANT}")\nattempt("register", convsss.register)')
+    assert out == {"register": "ok", "register variant": DEFAULT_VARIANT}
+
+
+@pytest.mark.parametrize("case, variant", [("scalar", "scalar_rgb"), ("spectral", "llvm_ad_spectral"),
+                                           ("requested mono", "llvm_ad_mono")])
+def test_unsupported_variant_is_refused_in_one_line_and_left_alone(switching, case, variant):
+    message = switching[case]
+    assert message.startswith(f"ConvsssError: Mitsuba variant '{variant}'") and "\n" not in message
+    assert all(v in message for v in SUPPORTED_VARIANTS)
+    assert switching[case + " variant"] == ("llvm_ad_spectral" if case == "requested mono" else variant)
+
+
+def test_requested_variant_is_set_and_the_plugin_loads(switching):
+    assert switching["requested rgb"] == "ok" and switching["requested rgb variant"] == "llvm_ad_rgb"
+    assert switching["load"] == "ok"
+
+
+def test_second_variant_in_one_process_is_refused(switching):
+    assert switching["second variant"].startswith("ConvsssError: convsss was loaded in Mitsuba variant "
+                                                  "'llvm_ad_rgb'")
