@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from convsss.scene.camera import first_hits, sensor_frame
-from convsss.scene.screen import ScreenExitance, world_to_pixel
+from convsss.scene.screen import world_to_pixel
 
 
 def _camera(mi, kind, crop):

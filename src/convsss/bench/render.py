@@ -42,11 +42,12 @@ def demo_scene(mi, width, spp):
                                     integrator={"type": "convsss", "specular": "phong"}))
 
 
-def _timed(render):
+def _timed(mi, scene, **options):
+    """Wall seconds of ``mi.render(scene, **options)``, its image evaluated."""
     import drjit as dr
 
     start = time.perf_counter()
-    image = render()
+    image = mi.render(scene, **options)
     dr.eval(image)
     dr.sync_thread()
     return time.perf_counter() - start
@@ -69,9 +70,9 @@ def bench_render(resolutions=RESOLUTIONS, spps=SPPS, runs=5, progress=True):
         stages, ours, theirs = {name: [] for name in STAGES}, [], []
         for run in range(runs + 1):
             bar.set_postfix_str(f"{width}² {spp} spp" + (" (warm-up)" if run == 0 else ""))
-            seconds = _timed(lambda: mi.render(scene, seed=run, spp=spp))
+            seconds = _timed(mi, scene, seed=run, spp=spp)
             bar.update()
-            path_seconds = _timed(lambda: mi.render(scene, integrator=path, seed=run, spp=spp))
+            path_seconds = _timed(mi, scene, integrator=path, seed=run, spp=spp)
             bar.update()
             if run == 0:
                 continue
@@ -102,7 +103,7 @@ def bench_commands(runs=5, progress=True):
         result = {}
         for name, args in lines.items():
             seconds = []
-            for run in range(runs + 1):  # the first run fills the numba and Dr.Jit caches if they are cold
+            for _ in range(runs + 1):  # the first run fills the numba and Dr.Jit caches if they are cold
                 start = time.perf_counter()
                 subprocess.run(command + args, check=True, capture_output=True)
                 seconds.append(time.perf_counter() - start)

@@ -28,10 +28,10 @@ from ..samples import IrradianceSamples
 from ..timing import StageTimer
 from ..transport import make_transport
 from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
-from .screen import ScreenExitance
 from .irradiance import indirect_irradiance, object_samples, sample_count
 from .objects import find_translucent_objects
 from .params import RenderParams, plugin_parameters
+from .screen import ScreenExitance
 from .shading import Shader
 
 mi = load_mitsuba()

@@ -6,7 +6,7 @@ asking the transport once per pixel is enough where the pixels resolve that scal
 pixel centres the object is seen at (:func:`~convsss.scene.camera.first_hits`), and a point ``x`` on the object is
 given
 
-    M(x) = sum_c w_c M(x_c),   w_c the bilinear weights of x's position on the screen among 4 pixel centres x_c,  (Eq. V1)
+    M(x) = sum_c w_c M(x_c),   w_c: bilinear weights of x's screen position among 4 pixel centres x_c,    (Eq. V1)
 
 when all four centres ``x_c`` lie on the same object, on the same side of it (normals within ``MAX_NORMAL_ANGLE``)
 and within ``reach`` of ``x`` in 3-D. The error of Eq. V1 is second order in the centres' spacing relative to the
