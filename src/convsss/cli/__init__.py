@@ -1,6 +1,6 @@
 """The ``convsss`` command line: one module per command, all registered on :data:`cli`."""
 
-from . import bench, compare, figures, materials, profile, reference, render, scene  # noqa: F401  (registers the commands)
+from . import bench, compare, edit, figures, materials, profile, reference, render, scene  # noqa: F401  (registers the commands)
 from .main import cli
 
 

@@ -127,6 +127,7 @@ def plot(names, models, output):
     from ..materials import OpticallyThinWarning, material
     from ..profiles import TabulatedProfile
     from ..profiles.models import model_profile
+    from ..profiles.plot import plot_profiles
 
     models = list(dict.fromkeys(models)) or ["dipole", "better-dipole", "pbd", "burley"]
     csvs = [Path(n) for n in names if n.lower().endswith(".csv")]
@@ -140,39 +141,8 @@ def plot(names, models, output):
             else:
                 m = material(name)
                 panels.append((m.name, [(k, model_profile(k, m)) for k in models]))
-    write_files({output: lambda tmp: _draw_profiles(panels, tmp)})
+    write_files({output: lambda tmp: plot_profiles(panels, tmp)})
     click.echo(f"wrote {output}")
-
-
-def _draw_profiles(panels, path):
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import numpy as np
-    from matplotlib.figure import Figure
-
-    styles = ["-", "--", "-.", ":"]
-    colours = ["tab:red", "tab:green", "tab:blue"]
-    columns = min(3, len(panels))
-    rows = (len(panels) + columns - 1) // columns
-    figure = Figure(figsize=(4.6 * columns, 3.6 * rows), layout="constrained")
-    axes = np.atleast_1d(figure.subplots(rows, columns, squeeze=False)).ravel()
-    for ax, (title, profiles) in zip(axes, panels):
-        reach = max(float(np.max(p.radius_energy(1e-4))) for _, p in profiles)
-        core = min(float(np.min(p.radius_energy(1 - 1e-3))) for _, p in profiles)
-        r = np.geomspace(max(core, reach * 1e-5), reach, 400)
-        for k, (model, p) in enumerate(profiles):
-            values = p(r)
-            for c in range(3):
-                ax.plot(r, r * values[:, c], styles[k % 4], color=colours[c], lw=1.2,
-                        label=model if c == 0 else None)
-        ax.set(xscale="log", yscale="log", title=title, xlabel="r  [mm]", ylabel="r R_d(r)  [1/mm]")
-        top = max(float(np.max(r[:, None] * p(r))) for _, p in profiles)
-        ax.set_ylim(top * 1e-5, top * 2)
-        ax.legend(fontsize=7)
-    for ax in axes[len(panels):]:
-        ax.set_visible(False)
-    figure.savefig(path, format="png", dpi=100)
 
 
 def _triple(text, name):

@@ -17,6 +17,7 @@ Per-stage seconds and everything a user needs to judge the run are in :attr:`Con
 """
 
 import warnings
+from dataclasses import dataclass, field
 
 import drjit as dr
 import numpy as np
@@ -59,6 +60,31 @@ def _seed(seed):
     return int(np.asarray(seed, dtype=np.uint64).reshape(-1)[0]) if not isinstance(seed, int) else seed
 
 
+@dataclass(eq=False)
+class PreparedState:
+    """What :meth:`ConvsssIntegrator.prepare` built for one sensor, kept so that :meth:`ConvsssIntegrator.retransport`
+    can rebuild the transports alone (new profiles or transport parameters) on the same samples and irradiance.
+
+    ``objects``, ``visible``, ``cells``, ``samples``, ``irradiance`` and ``deferred`` hold one entry per object seen
+    by the camera: the object, its visible points, the pixel footprint at its depth (mm), its irradiance samples
+    with the direct irradiance, the direct + indirect irradiance (N, 3) without the light of translucent objects,
+    and the indirect paths' hits on translucent objects (looked up in the transports, :meth:`Shader.resolve`).
+    """
+
+    scene: object
+    sensor: object
+    seed: int
+    frame: object
+    objects: list
+    visible: list
+    cells: list
+    samples: list
+    irradiance: list
+    deferred: list
+    tracer: object
+    transports: list = field(default_factory=list)
+
+
 class ConvsssIntegrator(mi.SamplingIntegrator):
     """Convolution-based subsurface scattering (Munoz et al. 2011) as a Mitsuba 3 integrator; see the module doc.
 
@@ -83,6 +109,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         self._shader = None
         self._nested = False
         self._threads = 1
+        #: The :class:`PreparedState` of the last :meth:`prepare` (kept until :meth:`render` is done with it).
+        self.prepared = None
 
     def to_string(self):
         return f"ConvsssIntegrator[{', '.join(f'{k}={v!r}' for k, v in self.params.to_dict().items())}]"
@@ -162,6 +190,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object, "hidden": hidden,
                       "samples": int(sum(o["samples"] for o in per_object)), "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
+        self.prepared = PreparedState(scene, sensor, _seed(seed), frame, shown, shown_at, cells, direct, irradiance,
+                                      deferred, tracer, transports)
         return self._shader
 
     def _indirect(self, scene, objects, samples, seed, stage):
@@ -216,6 +246,77 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                           for k, (t, records) in enumerate(zip(transports, deferred))]
         return transports, light, passes
 
+    def retransport(self, objects=None, params=None):
+        """Stage 3 again on the state of the last :meth:`prepare`: the transports, the light between translucent objects
+        and the screen's exitance, for new ``objects`` and/or new ``params``; returns the new :class:`Shader`.
+
+        The geometry, the samples and their irradiance (direct, and indirect off opaque surfaces) do not depend on the
+        profile (paper Eq. 2 has only ``F_t(eta)`` of the material), so a new material of the same ``eta``, another
+        profile model or another transport accuracy needs only the transports (Eq. 1) built again. A new ``eta``
+        changes ``F_t`` at every sample: that needs :meth:`prepare`.
+
+        Parameters
+        ----------
+        objects : list of TranslucentObject, optional
+            The prepared objects (``self.prepared.objects``), in that order, with other materials or profiles
+            (``dataclasses.replace(obj, material=..., profile=...)``); same shapes, same ``eta``.
+        params : RenderParams, optional
+            New parameters differing from the integrator's only in the transport and its parameters (not in what
+            sets the samples: ``sample_density``, ``downsample``, ``irradiance_samples``, ...) or ``profile``.
+
+        After it, :attr:`stats` ``seconds`` holds this rebuild's stages only; :meth:`render_prepared` shades.
+        """
+        state = self.prepared
+        if state is None:
+            raise ConvsssError("nothing is prepared to rebuild: call prepare() (or render_prepared after it) first")
+        objects = list(state.objects if objects is None else objects)
+        same = len(objects) == len(state.objects) and all(
+            new.shape is old.shape and new.instance_index == old.instance_index and new.eta == old.eta
+            for new, old in zip(objects, state.objects))
+        if not same:
+            raise ConvsssError("retransport keeps the prepared objects and their eta (Fresnel's F_t at the samples "
+                               "depends on it): call prepare() for a new eta or other objects")
+        if params is not None:
+            self._check_same_samples(params)
+            self.params = params
+        p = self.params
+        timer = StageTimer()
+
+        def stage(name):
+            self._stage(name)
+            return timer(name)
+
+        def build(k, extra=0.0):  # as prepare's, with the new objects' profiles
+            s = state.samples[k]
+            samples = IrradianceSamples(s.position, s.area, state.irradiance[k] + extra, s.normal)
+            with stage("transport"):
+                return make_transport(p.transport, samples, objects[k].profile, frame=state.frame,
+                                      **self._transport_params(state.cells[k]))
+
+        transports, _, passes = self._translucent_passes(state.tracer, state.samples, state.irradiance,
+                                                         state.deferred, build, stage)
+        with stage("screen"):
+            screen = ScreenExitance(state.sensor, objects, state.visible, transports, p.unit_mm)
+        self._shader = Shader(state.scene, objects, transports, p, stop=self.should_stop, screen=screen)
+        state.objects, state.transports = objects, transports
+        for summary, obj in zip(self.stats.get("objects", []), objects):
+            summary.update(obj.summary())
+        self.stats.update(parameters=p.to_dict(), seconds=dict(timer), translucent_passes=passes,
+                          screen_exitance={"usable": screen.usable, "queries": screen.queries})
+        return self._shader
+
+    def _check_same_samples(self, params):
+        """A one-line error when ``params`` would place or light the samples differently from the prepared ones."""
+        from .params import render_parameters
+
+        kept = [q.name for q in render_parameters() if q.name not in ("transport", "profile")]
+        changed = [n for n in kept if getattr(params, n) != getattr(self.params, n)]
+        if params.transport_params().get("downsample", 1.0) != self.params.transport_params().get("downsample", 1.0):
+            changed.append("downsample")
+        if changed:
+            raise ConvsssError(f"retransport cannot change {', '.join(changed)}: the samples depend on it; call "
+                               "prepare() with the new parameters")
+
     def _transport_params(self, cell_full):
         """The chosen transport's parameters, and the pixel footprint as its ``cell_size`` if it declares one."""
         params = self.params.transport_params()
@@ -253,6 +354,24 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                      f"{size[0]}x{size[1]} pixels at {per_pass} samples per pass",
                      "set the integrator's samples_per_pass (e.g. 4) or render fewer spp")
         self.prepare(scene, sensor, seed)
+        try:
+            return self.render_prepared(spp=spp, seed=seed, develop=develop, evaluate=evaluate)
+        finally:  # the samples and transports are not kept past a render (render_prepared keeps them)
+            self._shader = None
+            self.prepared = None
+
+    def render_prepared(self, spp=0, seed=None, develop=True, evaluate=True):
+        """Stage 4 alone: shade the camera rays of the last :meth:`prepare` (or :meth:`retransport`) through
+        Mitsuba's render loop, keeping the prepared state, so that an edit can rebuild what it changed and shade
+        again. ``seed`` defaults to the prepared one. Returns the image as :meth:`render` does."""
+        state = self.prepared
+        if state is None or self._shader is None:
+            raise ConvsssError("nothing is prepared to shade: call prepare() first")
+        scene, sensor = state.scene, state.sensor
+        seed = state.seed if seed is None else seed
+        film = sensor.film()
+        size = film.crop_size()
+        spp_used = spp if spp else sensor.sampler().sample_count()
         self._stage("shading")
         timer = StageTimer()
         self._nested = True
@@ -273,7 +392,6 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                               "spp": int(spp_used)}
         self.stats["transports"] = [t.stats for t in self._shader.transports]
         self.stats["exitance_lookups"] = self._shader.lookups
-        self._shader = None
         return image
 
     def sample(self, scene, sampler, ray, medium=None, active=True):

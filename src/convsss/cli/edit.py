@@ -1,0 +1,62 @@
+"""``convsss edit``: the interactive material editor, a local web page over an
+:class:`~convsss.editor.EditSession` (:mod:`convsss.editor.server`)."""
+
+import click
+
+from ..errors import ConvsssError
+from .main import cli
+from .options import integrator_options, load_source, render_params, scene_source_options
+
+
+@cli.command()
+@scene_source_options
+@click.option("--object", "target", help="The translucent object to edit: its shape id, or its index among those the "
+                                         "camera sees. [default: the first]")
+@click.option("--port", type=click.IntRange(0, 65535), default=0, show_default=True,
+              help="Port on 127.0.0.1 (0: a free one); the URL is printed.")
+@click.option("--open/--no-open", "open_browser", default=False, show_default=True,
+              help="Open the page in the default browser.")
+@integrator_options
+def edit(scene_file, mesh, material, size_mm, floor, boundary, width, height, spp, seed, target, port, open_browser,
+         **integrator):
+    """Edit one translucent object's material in a web page served on 127.0.0.1: the render, a preset picker,
+    sliders for colour and mean free path, sigma_s' and sigma_a per channel, eta (dielectric boundaries), the
+    multiscale transport's accuracy, the profile model, the profile's plot and per-stage seconds.
+
+    Between edits the scene, the surface samples and their irradiance are kept: a new material of the same eta, a
+    new model or accuracy rebuilds the transports and shades again; a new eta prepares the samples again. The preview
+    is --width/--height (default 256x256) at --spp (default 1). Ctrl-C stops the server.
+
+    \b
+    Examples:
+      convsss edit scene.xml --object bunny --port 8123
+      convsss edit --mesh bunny --material wholemilk --size-mm 40 --floor --width 512 --height 512
+    """
+    if spp is not None and spp < 1:
+        raise ConvsssError(f"spp={spp} is not allowed: it must be >= 1")
+    quick = scene_file is None
+    defaults = {"specular": "phong"} if quick else {}
+    render_params(integrator, defaults)  # bad values fail before anything is loaded
+    from ..backend import load_mitsuba
+    from ..editor import EditSession
+    from ..editor.server import EditorServer
+
+    load_mitsuba()
+    scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width or 256, height or 256)
+    named = scene.integrator()
+    base = named.params.to_dict() if named is not None and named.class_name() == "ConvsssIntegrator" else defaults
+    click.echo("rendering the first preview...", err=True)
+    session = EditSession(scene, render_params(integrator, base), target=target, spp=spp or 1, seed=seed)
+    server = EditorServer(session, "127.0.0.1", port)
+    if len(session.objects) > 1:
+        click.echo(f"editing {session.target.name!r}, one of {len(session.objects)} translucent objects "
+                   "(--object picks another)", err=True)
+    click.echo(f"convsss edit: {server.url}  (first render {session.last['seconds']['total']:.1f} s; Ctrl-C stops)")
+    if open_browser:
+        import webbrowser
+
+        webbrowser.open(server.url)
+    try:
+        server.serve_forever()
+    finally:
+        server.server_close()

@@ -1,0 +1,112 @@
+"""The editor's web server: one static page and a small JSON API over an :class:`~convsss.editor.EditSession`, on the
+loopback interface only (the standard library's ``http.server``; no dependency).
+
+    GET  /                the page (``static/index.html``, package data)
+    GET  /api/state       the session's :meth:`~convsss.editor.EditSession.state` (JSON)
+    POST /api/update      a JSON object of changes (:data:`~convsss.editor.session.FIELDS`) -> the new state;
+                          a bad value -> 400 ``{"error": "..."}``, nothing changed
+    GET  /image.png       the last render, tone-mapped
+    GET  /profile.png     ``r R_d(r)`` of the edited object's profile
+
+Requests are served one at a time (a render holds the session's lock anyway). Only ``127.0.0.1``, ``::1`` and
+``localhost`` may be bound, and requests must name one of them in their ``Host`` header (a page elsewhere cannot
+reach the API through DNS rebinding).
+"""
+
+import http.server
+import json
+import socketserver
+from importlib import resources
+
+from ..errors import ConvsssError
+
+#: Hosts the server may bind and that requests may name.
+LOOPBACK = ("127.0.0.1", "::1", "localhost")
+
+
+def check_loopback(host):
+    """``host`` if it is a loopback address, else a one-line error."""
+    if host not in LOOPBACK:
+        raise ConvsssError(f"the editor serves on the loopback interface only ({', '.join(LOOPBACK)}), not {host!r}: "
+                           "it renders with this machine's files and has no authentication")
+    return host
+
+
+def page():
+    """The editor's HTML page (bytes)."""
+    return resources.files("convsss").joinpath("editor", "static", "index.html").read_bytes()
+
+
+class EditorHandler(http.server.BaseHTTPRequestHandler):
+    """Serves :attr:`server.session` (an :class:`EditSession`)."""
+
+    server_version = "convsss-edit"
+
+    def log_message(self, format, *args):  # quiet: the command prints the URL and errors only
+        pass
+
+    def _send(self, status, body, kind):
+        self.send_response(status)
+        self.send_header("Content-Type", kind)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        self.wfile.write(body)
+
+    def _json(self, status, value):
+        self._send(status, json.dumps(value).encode(), "application/json")
+
+    def _local(self):
+        host = (self.headers.get("Host") or "").rsplit(":", 1)[0].strip("[]")
+        if host not in LOOPBACK:
+            self._json(403, {"error": f"requests must name a loopback host, not {host!r}"})
+            return False
+        return True
+
+    def do_GET(self):
+        if not self._local():
+            return
+        path = self.path.split("?", 1)[0]
+        session = self.server.session
+        if path in ("/", "/index.html"):
+            self._send(200, page(), "text/html; charset=utf-8")
+        elif path == "/api/state":
+            self._json(200, session.state())
+        elif path == "/image.png":
+            self._send(200, session.image_png(), "image/png")
+        elif path == "/profile.png":
+            self._send(200, session.profile_png(), "image/png")
+        else:
+            self._json(404, {"error": f"no {path}"})
+
+    def do_POST(self):
+        if not self._local():
+            return
+        if self.path.split("?", 1)[0] != "/api/update":
+            self._json(404, {"error": f"no {self.path}"})
+            return
+        try:
+            changes = json.loads(self.rfile.read(int(self.headers.get("Content-Length") or 0)) or b"{}")
+            if not isinstance(changes, dict):
+                raise ConvsssError("an update is a JSON object of changes")
+            self._json(200, self.server.session.update(**changes))
+        except (ConvsssError, ValueError, TypeError) as error:
+            self._json(400, {"error": str(error)})
+
+
+class EditorServer(socketserver.TCPServer):
+    """An HTTP server on a loopback address, holding the session its handler serves."""
+
+    allow_reuse_address = True
+
+    def __init__(self, session, host="127.0.0.1", port=0):
+        import socket
+
+        self.address_family = socket.AF_INET6 if ":" in check_loopback(host) else socket.AF_INET
+        self.session = session
+        super().__init__((host, int(port)), EditorHandler)
+
+    @property
+    def url(self):
+        host, port = self.server_address[:2]
+        return f"http://{'[' + host + ']' if ':' in host else host}:{port}/"

@@ -1,0 +1,300 @@
+"""An edit session: one scene kept prepared while one translucent object's material, profile model and the
+transport's accuracy change, each edit rebuilding only what depends on it (the engine of ``convsss edit``; no HTTP).
+
+Along the data flow scene -> samples -> irradiance -> transport -> shading (DESIGN.md):
+
+- ``sigma_s'`` and ``sigma_a`` (given directly, by colour and mean free path, or as a preset of the same ``eta``),
+  the profile model and the transport's ``accuracy`` change the profile ``R_d`` of paper Eq. 1 (or how it is summed)
+  only: the scene, the samples and their irradiance (Eq. 2, direct and indirect off opaque surfaces) are kept, the
+  transports are built again (:meth:`~convsss.scene.integrator.ConvsssIntegrator.retransport`) and the camera rays
+  shaded again (:meth:`~convsss.scene.integrator.ConvsssIntegrator.render_prepared`);
+- ``eta`` changes the Fresnel transmittance ``F_t(eta, w_i)`` at every sample (Eq. 2) and the boundary's reflection:
+  the samples are prepared again (same seed: same points) and shaded.
+
+Every edit is written into the loaded scene too (the medium's ``sigma_t``/``albedo``/``scale`` and the dielectric's
+``eta``, through ``mi.traverse``), so the scene stays the one source of truth. One object is edited; an instanced one
+edits every instance of its shapegroup (they share the medium). Images are tone-mapped by one Reinhard operator fixed
+by the first render, so a brighter material shows brighter.
+"""
+
+import io
+import threading
+import time
+import warnings
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import ConvsssError
+from ..materials import Material, OpticallyThinWarning, catalog
+from ..materials import material as preset_material
+from ..profiles import TabulatedProfile
+from ..profiles.models import PROFILE_MODELS, check_model, model_profile, model_total, parse_profile_spec
+
+#: The pseudo-model of an object that came with a tabulated (CSV) profile: kept as it is, whatever the coefficients.
+TABULATED = "tabulated"
+#: What an edit may set (the JSON API's keys).
+FIELDS = ("preset", "color", "mfp_mm", "sigma_s_prime", "sigma_a", "eta", "model", "accuracy")
+
+
+def model_name(profile):
+    """The :data:`~convsss.profiles.models.PROFILE_MODELS` name of ``profile``'s class, or ``"tabulated"``."""
+    for name, cls in PROFILE_MODELS.items():
+        if type(profile) is cls:
+            return name
+    if isinstance(profile, TabulatedProfile):
+        return TABULATED
+    raise ConvsssError(f"the editor does not know the profile {profile!r}")
+
+
+def _triple(value, name):
+    try:
+        out = np.broadcast_to(np.asarray(value, dtype=np.float64), (3,)).copy()
+    except (TypeError, ValueError):
+        raise ConvsssError(f"{name}={value!r} is not allowed: give one number or three (R, G, B)") from None
+    if not np.all(np.isfinite(out)):
+        raise ConvsssError(f"{name}={value!r} is not allowed: the values must be finite")
+    return out
+
+
+class EditSession:
+    """A loaded scene rendered by the ``convsss`` integrator, kept prepared for edits of one translucent object.
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+        Loaded (:func:`convsss.scene.loading.load_scene`), its film at the preview's size.
+    params : RenderParams, optional
+        The integrator's parameters (default: the scene's ``convsss`` integrator's, or the defaults).
+    target : str or int, optional
+        The object edited: a name (shape id) or an index among the translucent objects the camera sees (default 0).
+    spp : int, optional
+        Samples per pixel of the preview (default: the scene's sampler).
+    seed : int
+
+    Attributes
+    ----------
+    integrator : ConvsssIntegrator
+    material : Material        the edited object's material (1/mm)
+    model : str                its profile model (or ``"tabulated"``)
+    version : int              one more per render
+    last : dict                the last render: ``rebuilt`` ("prepare" or "transport") and ``seconds`` per stage
+    """
+
+    def __init__(self, scene, params=None, target=None, spp=None, seed=0):
+        from ..scene.integrator import register
+        from ..scene.params import RenderParams
+
+        self.mi = register()
+        self.scene, self.sensor, self.seed = scene, scene.sensors()[0], int(seed)
+        self.spp = int(spp) if spp else int(self.sensor.sampler().sample_count())
+        if params is None:
+            named = scene.integrator()
+            params = RenderParams(**(named.params.to_dict() if named is not None
+                                     and named.class_name() == "ConvsssIntegrator" else {}))
+        self.integrator = self.mi.load_dict(params.integrator_dict())
+        self.lock = threading.Lock()
+        self.version = 0
+        self._png = self._profile_png = None
+        self._tonemap = None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", OpticallyThinWarning)
+            start = time.perf_counter()
+            self.integrator.prepare(scene, self.sensor, self.seed)
+            objects = self.integrator.prepared.objects
+            if not objects:
+                raise ConvsssError("the camera sees no translucent object to edit")
+            self.target = self._pick(objects, target)
+            self.material, self.model = self.target.material, model_name(self.target.profile)
+            self._tabulated = self.target.profile if self.model == TABULATED else None
+            self._render("prepare", start)
+
+    @staticmethod
+    def _pick(objects, target):
+        if target is None:
+            return objects[0]
+        if isinstance(target, int) or str(target).isdigit():
+            k = int(target)
+            if not 0 <= k < len(objects):
+                raise ConvsssError(f"object #{k} does not exist: the camera sees {len(objects)} translucent object(s)")
+            return objects[k]
+        for obj in objects:
+            if obj.name == target or obj.name.split("/")[0] == target:
+                return obj
+        raise ConvsssError(f"no translucent object {target!r} is seen by the camera: choose one of "
+                           f"{', '.join(repr(o.name) for o in objects)}")
+
+    # ---- what the page shows --------------------------------------------------------------------------------------
+    @property
+    def objects(self):
+        return self.integrator.prepared.objects
+
+    @property
+    def eta_editable(self):
+        return self.target.boundary != "null"
+
+    def profile(self):
+        """The edited object's profile."""
+        return self._tabulated if self.model == TABULATED else model_profile(self.model, self.material)
+
+    def state(self):
+        """JSON-ready: the object, its material, model, the transport's accuracy, the choices and the last timings."""
+        m, p = self.material, self.integrator.params
+        accuracy = p.transport_params().get("accuracy")
+        models = list(PROFILE_MODELS) + ([TABULATED] if self._tabulated is not None else [])
+        color_model = self.model if self.model != TABULATED else "dipole"
+        return {
+            "version": self.version,
+            "object": self.target.name, "objects": [o.name for o in self.objects], "boundary": self.target.boundary,
+            "eta_editable": self.eta_editable,
+            "material": {"name": m.name, "sigma_s_prime": m.sigma_s_prime.tolist(), "sigma_a": m.sigma_a.tolist(),
+                         "eta": m.eta, "color": model_profile(color_model, m).total_reflectance.tolist(),
+                         "mfp_mm": m.mfp_mm.tolist(), "albedo_prime": m.albedo_prime.tolist(),
+                         "thin_channels": m.thin_channels()},
+            "color_max": model_total(color_model, 1.0, m.eta), "model": self.model, "models": models,
+            "transport": p.transport, "accuracy": accuracy,
+            "presets": [x.name for x in catalog()],
+            "film": [int(x) for x in self.sensor.film().crop_size()], "spp": self.spp,
+            "last": self.last,
+        }
+
+    def image_png(self):
+        """The last render, tone-mapped, as PNG bytes."""
+        return self._png
+
+    def profile_png(self):
+        """``r R_d(r)`` of the edited object's profile (:func:`convsss.profiles.plot.plot_profiles`) as PNG bytes."""
+        if self._profile_png is None:
+            from ..profiles.plot import plot_profiles
+
+            buffer = io.BytesIO()
+            plot_profiles([(f"{self.target.name}: {self.material.name}", [(self.model, self.profile())])], buffer,
+                          panel_size=(4.6, 3.2))
+            self._profile_png = buffer.getvalue()
+        return self._profile_png
+
+    # ---- edits ----------------------------------------------------------------------------------------------------
+    def update(self, **changes):
+        """Apply ``changes`` (keys of :data:`FIELDS`), rebuild what depends on them, render; returns :meth:`state`.
+
+        ``preset`` (a name of ``convsss materials``; its eta on a dielectric boundary) is applied first, then
+        ``color``/``mfp_mm`` (:meth:`Material.from_color` under the current model; the one not given is kept), then
+        ``sigma_s_prime``/``sigma_a`` (1/mm), then ``eta``; ``model`` and ``accuracy`` as they are. A bad value is a
+        :class:`ConvsssError` and changes nothing.
+        """
+        unknown = sorted(set(changes) - set(FIELDS))
+        if unknown:
+            raise ConvsssError(f"the editor cannot set {unknown[0]!r}: it sets {', '.join(FIELDS)}")
+        with self.lock, warnings.catch_warnings():
+            warnings.simplefilter("ignore", OpticallyThinWarning)
+            start = time.perf_counter()
+            model = self.model if changes.get("model") is None else changes["model"]
+            if model != TABULATED or self._tabulated is None:
+                check_model(model)
+            material = self._material(changes, model)
+            params = self._params(changes.get("accuracy"))
+            if material.eta != self.material.eta:
+                rebuilt = "prepare"
+            elif (model != self.model or params.to_dict() != self.integrator.params.to_dict()
+                  or not (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)
+                          and np.array_equal(material.sigma_a, self.material.sigma_a))):
+                rebuilt = "transport"
+            else:
+                rebuilt = None
+            if rebuilt is None:
+                return self.state()
+            self._write_scene(material)
+            self.material, self.model = material, model
+            profile = self.profile()
+            if rebuilt == "prepare":
+                default, per_object = parse_profile_spec(params.profile)
+                if model != TABULATED:
+                    per_object.update({o.name: model for o in self.objects if o.shape is self.target.shape})
+                spec = ",".join([default] + [f"{k}={v}" for k, v in per_object.items()])
+                self.integrator.params = self._with(params, profile=spec)
+                self.integrator.prepare(self.scene, self.sensor, self.seed)  # reads the material from the scene
+            else:
+                self.integrator.retransport([replace(o, material=material, profile=profile)
+                                             if o.shape is self.target.shape else o for o in self.objects], params)
+            self.target = self._pick(self.objects, self.target.name)
+            self._profile_png = None
+            self._render(rebuilt, start)
+            return self.state()
+
+    def _material(self, changes, model):
+        m = self.material
+        eta = m.eta
+        if changes.get("preset"):
+            preset = preset_material(changes["preset"])
+            eta = preset.eta if self.eta_editable else 1.0
+            m = Material(preset.sigma_s_prime, preset.sigma_a, eta, preset.name)
+        if changes.get("color") is not None or changes.get("mfp_mm") is not None:
+            color_model = model if model != TABULATED else "dipole"
+            color = (_triple(changes["color"], "color") if changes.get("color") is not None
+                     else model_profile(color_model, m).total_reflectance)
+            mfp = _triple(changes["mfp_mm"], "mfp_mm") if changes.get("mfp_mm") is not None else m.mfp_mm
+            m = Material.from_color(color, mfp, eta, color_model)
+        if changes.get("sigma_s_prime") is not None or changes.get("sigma_a") is not None:
+            s = _triple(changes["sigma_s_prime"], "sigma_s'") if changes.get("sigma_s_prime") is not None \
+                else m.sigma_s_prime
+            a = _triple(changes["sigma_a"], "sigma_a") if changes.get("sigma_a") is not None else m.sigma_a
+            m = Material.from_reduced(s, a, eta)
+        if changes.get("eta") is not None:
+            eta = float(changes["eta"])
+            if not self.eta_editable and eta != 1.0:
+                raise ConvsssError(f"object {self.target.name!r} has a null (index-matched) boundary: its eta is 1; "
+                                   "give it a dielectric boundary in the scene to edit eta")
+            m = Material(m.sigma_s_prime, m.sigma_a, eta, m.name)
+        return m
+
+    @staticmethod
+    def _with(params, **values):
+        from ..scene.params import RenderParams
+
+        return RenderParams(**{**params.to_dict(), **values})
+
+    def _params(self, accuracy):
+        p = self.integrator.params
+        if accuracy is None:
+            return p
+        if "accuracy" not in p.transport_params():
+            raise ConvsssError(f"the {p.transport} transport has no accuracy knob (the multiscale transport has)")
+        return self._with(p, accuracy=float(accuracy))
+
+    def _write_scene(self, material):
+        """The edited object's medium (``sigma_t``, ``albedo``, ``scale`` per scene unit, its phase's ``g`` kept) and
+        boundary ``eta``, in the loaded scene."""
+        mi, obj = self.mi, self.target
+        unit = self.integrator.params.unit_mm
+        medium = mi.traverse(obj.shape.interior_medium())
+        g = float(np.asarray(medium["phase_function.g"]).reshape(-1)[0]) if "phase_function.g" in medium else 0.0
+        sigma_s = material.sigma_s_prime / (1.0 - g)  # the similarity relation, sigma_s' = sigma_s (1 - g)
+        sigma_t = (sigma_s + material.sigma_a) * unit
+        scale = float(np.max(sigma_t))
+        medium["sigma_t.value.value"] = mi.Color3f(*[float(x) for x in sigma_t / scale])
+        medium["albedo.value.value"] = mi.Color3f(*[float(x) for x in sigma_s * unit / sigma_t])
+        medium["scale"] = scale
+        medium.update()
+        if self.eta_editable and material.eta != self.material.eta:
+            bsdf = mi.traverse(obj.shape.bsdf())
+            bsdf["eta"] = material.eta
+            bsdf.update()
+
+    def _render(self, rebuilt, start):
+        from ..image import Reinhard, srgb_encode
+
+        image = self.integrator.render_prepared(spp=self.spp)
+        seconds = dict(self.integrator.stats["seconds"])
+        t = time.perf_counter()
+        rgb = np.asarray(image, dtype=np.float64)[..., :3]
+        if self._tonemap is None:
+            self._tonemap = Reinhard(rgb)
+        bitmap = self.mi.Bitmap(srgb_encode(self._tonemap(rgb)))
+        stream = self.mi.MemoryStream()
+        bitmap.write(stream, self.mi.Bitmap.FileFormat.PNG)
+        self._png = bytes(stream.raw_buffer())
+        self.image = rgb
+        seconds["encode"] = time.perf_counter() - t
+        seconds["total"] = time.perf_counter() - start
+        self.version += 1
+        self.last = {"rebuilt": rebuilt, "seconds": seconds}

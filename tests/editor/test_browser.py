@@ -1,0 +1,58 @@
+"""The editor's page end to end in headless Chromium (Playwright driving Debian's ``chromium``): load the page, move a
+slider, wait for the new render, keep a screenshot in ``out/test-artifacts/`` (not committed).
+
+Skipped when the ``playwright`` package or a Chromium binary is missing (``pip install playwright`` and
+``apt-get install chromium``; no browser is downloaded).
+"""
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+playwright = pytest.importorskip("playwright.sync_api", reason="the playwright package is not installed "
+                                                                 "(pip install playwright)")
+CHROMIUM = os.environ.get("CONVSSS_CHROMIUM") or shutil.which("chromium") or shutil.which("chromium-browser")
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="no chromium binary (apt-get install chromium, or set "
+                                                         "CONVSSS_CHROMIUM)")
+ARTIFACTS = Path(__file__).parents[2] / "out" / "test-artifacts"
+
+
+def test_moving_a_slider_renders_a_new_image(editor_server, tmp_path):
+    with playwright.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=["--no-sandbox"])
+        try:
+            page = browser.new_page(viewport={"width": 1100, "height": 800})
+            errors = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(editor_server.url)
+            page.wait_for_function("document.body.dataset.version === '1'")
+            page.wait_for_function("document.getElementById('render').complete "
+                                   "&& document.getElementById('render').naturalWidth === 32")
+            before = page.locator("#render").screenshot()
+            assert page.locator("#eta").is_enabled()  # a dielectric boundary
+            assert page.locator("#preset option").count() == 48  # the 47 presets and the prompt
+            # Move sigma_a (red) by keyboard: a real input event, as a user's drag gives.
+            page.locator("#sigma_a-0").focus()
+            for _ in range(40):
+                page.keyboard.press("ArrowRight")
+            page.wait_for_function("+document.body.dataset.version >= 2 && document.getElementById('busy')"
+                                   ".textContent === ''", timeout=120_000)
+            page.wait_for_function("document.getElementById('render').complete")
+            after = page.locator("#render").screenshot()
+            assert after != before
+            assert "transport" in page.locator("#timings").inner_text()
+            assert page.locator("#error").inner_text() == ""
+            # Another profile model: a new render and a new profile plot.
+            page.select_option("#model", "better-dipole")
+            page.wait_for_function("+document.body.dataset.version >= 3 && document.getElementById('busy')"
+                                   ".textContent === '' && document.getElementById('profile').complete",
+                                   timeout=120_000)
+            assert not errors
+            ARTIFACTS.mkdir(parents=True, exist_ok=True)
+            for folder in (tmp_path, ARTIFACTS):
+                page.screenshot(path=str(folder / "editor.png"), full_page=True)
+        finally:
+            browser.close()
+    assert (ARTIFACTS / "editor.png").stat().st_size > 1000

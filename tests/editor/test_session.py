@@ -1,0 +1,74 @@
+"""The edit session: each edit rebuilds only what depends on it (convsss.editor.session)."""
+
+import numpy as np
+import pytest
+
+from convsss.errors import ConvsssError
+
+
+def test_new_coefficients_rebuild_the_transport_on_the_same_samples(session):
+    s = session()
+    prepared = s.integrator.prepared
+    samples, irradiance, transports = prepared.samples, prepared.irradiance, list(prepared.transports)
+    before, version = s.image.copy(), s.version
+    state = s.update(sigma_a=[0.3, 0.3, 0.3])
+    assert state["last"]["rebuilt"] == "transport"
+    assert set(state["last"]["seconds"]) >= {"transport", "screen", "shading", "total"}
+    assert "samples" not in state["last"]["seconds"] and "irradiance" not in state["last"]["seconds"]
+    assert s.integrator.prepared is prepared and prepared.samples is samples and prepared.irradiance is irradiance
+    assert prepared.transports[0] is not transports[0]
+    assert prepared.transports[0].profile.sigma_a.tolist() == [0.3, 0.3, 0.3]
+    assert state["version"] == version + 1 and state["material"]["sigma_a"] == [0.3, 0.3, 0.3]
+    assert np.mean(s.image) < np.mean(before)  # more absorption: darker
+    # The scene holds the new medium too.
+    from convsss.scene.objects import find_translucent_objects
+
+    found = find_translucent_objects(s.mi, s.scene)[0].material
+    assert np.allclose(found.sigma_a, 0.3, rtol=1e-5) and np.allclose(found.sigma_s_prime, s.material.sigma_s_prime)
+
+
+def test_model_accuracy_and_colour_rebuild_the_transport_only(session):
+    s = session()
+    samples = s.integrator.prepared.samples
+    assert s.update(model="better-dipole")["last"]["rebuilt"] == "transport"
+    assert type(s.integrator.prepared.transports[0].profile).__name__ == "BetterDipoleProfile"
+    state = s.update(accuracy=0.05)
+    assert state["last"]["rebuilt"] == "transport" and state["accuracy"] == 0.05
+    assert s.integrator.prepared.transports[0].params["accuracy"] == 0.05
+    state = s.update(color=[0.5, 0.4, 0.3], mfp_mm=1.0)
+    assert np.allclose(state["material"]["color"], [0.5, 0.4, 0.3], rtol=1e-6)
+    assert np.allclose(state["material"]["mfp_mm"], 1.0)
+    assert s.integrator.prepared.samples is samples
+    assert s.update(model="better-dipole")["last"]["rebuilt"] == "transport"  # same as before: nothing new...
+    assert s.version == 4  # ...so no render
+
+
+def test_eta_prepares_again_and_is_refused_on_a_null_boundary(session):
+    s = session(boundary="dielectric")
+    samples = s.integrator.prepared.samples
+    state = s.update(eta=1.5)
+    assert state["last"]["rebuilt"] == "prepare" and state["material"]["eta"] == 1.5
+    assert s.integrator.prepared.samples is not samples
+    assert s.integrator.prepared.objects[0].eta == pytest.approx(1.5)
+    null = session(boundary="null")
+    assert not null.state()["eta_editable"]
+    with pytest.raises(ConvsssError, match="null"):
+        null.update(eta=1.4)
+
+
+def test_bad_edits_change_nothing(session):
+    s = session()
+    state = s.state()
+    for changes in ({"colour": [0.5] * 3}, {"color": [1.5, 0.5, 0.5]}, {"model": "nope"}, {"sigma_a": [-1, 0, 0]},
+                    {"accuracy": 2.0}, {"preset": "not a material"}):
+        with pytest.raises(ConvsssError):
+            s.update(**changes)
+    assert s.state() == state
+
+
+def test_a_preset_and_the_profile_plot(session):
+    s = session()
+    state = s.update(preset="marble")
+    assert state["material"]["name"] == "Marble" and state["last"]["rebuilt"] == "transport"  # null boundary: eta 1
+    assert s.profile_png()[:8] == b"\x89PNG\r\n\x1a\n" and s.image_png()[:4] == b"\x89PNG"
+    assert len(state["presets"]) == 47
