@@ -44,7 +44,7 @@ class VisibilityWarning(UserWarning):
     """A translucent object is not seen by the camera and is skipped."""
 
 
-#: Bytes per path of one wavefront (ray, interaction, BSDF sample, throughput, lanes): measured order of magnitude.
+#: Bytes per path of the path loop (its state, the recorded hits, the image samples): measured order of magnitude.
 BYTES_PER_PATH = 600
 #: Bytes per surface sample held while the transport is built (about 325 measured; irradiance runs in chunks).
 BYTES_PER_SAMPLE = 400

@@ -162,9 +162,9 @@ class Shader:
             result = dr.select(translucent, self._phong(si, ray_d, eta, ds, light), result)
         return dr.select(alive, result, 0.0)
 
-    # --- the wavefront loop -----------------------------------------------------------------------------------------
+    # --- the path loop ----------------------------------------------------------------------------------------------
     def shade(self, sampler, ray):
-        """Radiance (mi.Color3f) and hit mask (mi.Bool) for a wavefront of camera rays, drawing from ``sampler``."""
+        """Radiance (mi.Color3f) and hit mask (mi.Bool) for a batch of camera rays, drawing from ``sampler``."""
         return self._trace(sampler, ray, 0)
 
     def incident(self, sampler, ray, weight, tags):
