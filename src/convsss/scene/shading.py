@@ -112,13 +112,20 @@ class Shader:
         for k, tag, points, normals, weight in self.deferred if deferred is None else deferred:
             if transports[k] is None:
                 continue
-            for chunk in np.array_split(np.arange(len(tag)), max(1, -(-len(tag) // transports[k].query_batch))):
-                if len(chunk) == 0 or (self.stop is not None and self.stop()):
-                    continue
-                tags.append(tag[chunk])
-                values.append(weight[chunk] * transports[k].exitance(points[chunk], normals[chunk]))
-                self.lookups += len(chunk)
+            tags.append(tag)
+            values.append(weight * self._exitance(transports[k], points, normals))
         return np.concatenate(tags), np.concatenate(values)
+
+    def _exitance(self, transport, points, normals):
+        """``transport``'s ``M`` at ``points`` (mm; (K, 3) numpy), asked in chunks of its ``query_batch``; chunks
+        left when :attr:`stop` says so stay 0."""
+        out = np.zeros((len(points), 3))
+        for chunk in np.array_split(np.arange(len(points)), max(1, -(-len(points) // transport.query_batch))):
+            if len(chunk) == 0 or (self.stop is not None and self.stop()):
+                continue
+            out[chunk] = transport.exitance(points[chunk], normals[chunk])
+            self.lookups += len(chunk)
+        return out
 
     def _phong(self, si, ray_d, eta, ds, light):
         """The paper's Phong highlight from one emitter sample: ``F_r (e+2)/(2 pi) cos^e(alpha) cos_l L/pdf``."""
@@ -330,11 +337,7 @@ class Shader:
                 self.deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation,
                                       beta[mine] * self._weight[tag]))
                 continue
-            for chunk in np.array_split(mine, max(1, -(-len(mine) // transport.query_batch))):
-                if len(chunk) == 0 or (self.stop is not None and self.stop()):
-                    continue
-                value[chunk] = beta[chunk] * transport.exitance(points[chunk], normals[chunk] * obj.orientation)
-                self.lookups += len(chunk)
+            value[mine] = beta[mine] * self._exitance(transport, points[mine], normals[mine] * obj.orientation)
         dr.scatter_add(total, _color(value), mi.UInt32(lanes.astype(np.uint32)))
 
     def _emission(self, si, prev_p, prev_n, prev_pdf, prev_delta):
