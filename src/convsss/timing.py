@@ -5,7 +5,15 @@ from contextlib import contextmanager
 
 
 class StageTimer(dict):
-    """A dict ``stage -> seconds``; ``with timer("fft"): ...`` adds the block's wall time to ``timer["fft"]``."""
+    """A dict ``stage -> seconds``; ``with timer("fft"): ...`` adds the block's wall time to ``timer["fft"]``.
+
+    ``sync``, if given, is called at the end of each block before the clock is read: work a block launched
+    asynchronously (Dr.Jit's kernels, ``drjit.sync_thread``) is then counted in that block, not in a later one.
+    """
+
+    def __init__(self, sync=None):
+        super().__init__()
+        self.sync = sync
 
     @contextmanager
     def __call__(self, stage):
@@ -13,4 +21,6 @@ class StageTimer(dict):
         try:
             yield
         finally:
+            if self.sync is not None:
+                self.sync()
             self[stage] = self.get(stage, 0.0) + time.perf_counter() - start

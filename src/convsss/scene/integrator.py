@@ -126,7 +126,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     def prepare(self, scene, sensor, seed=0):
         """Stages 1–3 for ``sensor``: translucent objects, their irradiance samples and transports."""
         p = self.params
-        timer = StageTimer()
+        timer = StageTimer(sync=dr.sync_thread)
 
         def stage(name):
             self._stage(name)
@@ -280,7 +280,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self._check_same_samples(params)
             self.params = params
         p = self.params
-        timer = StageTimer()
+        timer = StageTimer(sync=dr.sync_thread)
 
         def stage(name):
             self._stage(name)
@@ -373,7 +373,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         size = film.crop_size()
         spp_used = spp if spp else sensor.sampler().sample_count()
         self._stage("shading")
-        timer = StageTimer()
+        timer = StageTimer(sync=dr.sync_thread)
         self._nested = True
         try:
             # Mitsuba's film kernel scatter-adds each sample to every pixel its reconstruction filter covers: it runs

@@ -296,6 +296,7 @@ class Shader:
             prev_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
             active = continues
             depth += 1
+        dr.eval(total, valid, count)
         return total, valid, records, int(count.numpy()[0])
 
     def _screen_exitance(self, si, which, translucent, weight):
