@@ -8,7 +8,7 @@ from convsss import material
 from convsss.errors import ConvsssError
 from convsss.samples import IrradianceSamples, ViewFrame
 from convsss.transport import make_transport
-from convsss.transport.multiscale import BAND_TABLE, cluster, core_width, scales, split
+from convsss.transport.multiscale import BAND_TABLE, cluster, core_width, scales, sheet_side, split
 
 FRAME = ViewFrame.look_at(origin=[0, 0, 100], target=[0, 0, 0])
 
@@ -56,6 +56,7 @@ def test_scales_follow_the_profile_and_the_accuracy():
     assert core_width(skin) > 2 * core_width(milk)
     fine, coarse = scales(milk, 0.0025), scales(milk, 0.04)
     assert coarse.cluster == pytest.approx(4 * fine.cluster) and coarse.mesh == pytest.approx(4 * fine.mesh)
+    assert fine.band_cluster == pytest.approx(2 * fine.cluster)
     assert fine.split == coarse.split and fine.core < fine.split
 
 
@@ -65,10 +66,19 @@ def test_clusters_keep_the_flux_and_the_two_sides_of_a_sheet_apart():
     normal = np.tile([0.0, 0.0, 1.0], (5000, 1))
     normal[::2] *= -1  # a sheet much thinner than a cluster, seen from both sides
     flux = rng.random((5000, 3))
-    centre, total = cluster(position, normal, np.full(5000, 1e-3), flux, 0.5, position.min(axis=0))
-    np.testing.assert_allclose(total.sum(axis=0), flux.sum(axis=0))
-    assert len(centre) == 2 * 8 * 8  # 8 x 8 cubes, two sides each
-    assert np.all(centre.min(axis=0) >= position.min(axis=0)) and np.all(centre.max(axis=0) <= position.max(axis=0))
+    origin = position.min(axis=0)
+    fine = cluster(position, sheet_side(normal), np.full(5000, 1e-3), flux, 0.5, origin)
+    np.testing.assert_allclose(fine.flux.sum(axis=0), flux.sum(axis=0))
+    np.testing.assert_allclose(fine.area.sum(), 5.0)
+    assert len(fine) == 2 * 8 * 8  # 8 x 8 cubes, two sides each
+    assert np.all(fine.centre.min(axis=0) >= origin) and np.all(fine.centre.max(axis=0) <= position.max(axis=0))
+    # Clustered again in cubes twice as large: whole clusters merge, as if the samples had been clustered so.
+    coarse = cluster(fine.centre, fine.side, fine.area, fine.flux, 1.0, origin)
+    direct = cluster(position, sheet_side(normal), np.full(5000, 1e-3), flux, 1.0, origin)
+    assert len(coarse) == len(direct) == 2 * 4 * 4
+    np.testing.assert_allclose(coarse.flux, direct.flux)
+    np.testing.assert_allclose(coarse.centre, direct.centre)
+    np.testing.assert_array_equal(coarse.side, direct.side)
 
 
 @pytest.mark.parametrize("radius", [2.0, 20.0])
