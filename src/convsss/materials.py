@@ -192,12 +192,13 @@ def catalog():
     return list(_catalog().values())
 
 
-def material(name):
-    """The preset called ``name`` (case, spaces and punctuation ignored); the closest names on a miss."""
+def material(name, warn=True):
+    """The preset called ``name`` (case, spaces and punctuation ignored); the closest names on a miss. ``warn``:
+    an :class:`OpticallyThinWarning` for a preset with thin channels (off where the object warns by its own name)."""
     presets = _catalog()
     key = normalize_name(name)
     if key in presets:
-        return presets[key].warn_if_thin()
+        return presets[key].warn_if_thin() if warn else presets[key]
     close = difflib.get_close_matches(key, presets.keys(), n=3, cutoff=0.5)
     hint = f"; did you mean {', '.join(repr(presets[k].name) for k in close)}?" if close else ""
     raise ConvsssError(f"unknown material {name!r}{hint} (`convsss materials` lists all {len(presets)})")

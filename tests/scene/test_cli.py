@@ -410,3 +410,112 @@ def test_ctrl_c_ends_render_in_one_line_without_outputs(tmp_path, stage):
     _interrupt(["render", "--mesh", "bunny", "--material", "wholemilk", "--size-mm", "40", "--width", "96",
                 "--height", "96", "--spp", "256", "-o", str(tmp_path / "out" / "img"), "--transport", "exact"],
                tmp_path, stage)
+
+
+# ---- Materials by colour and distance, presets named in scene files ------------------------------------------
+
+def test_render_reference_and_scene_take_a_colour_and_mfp(tmp_path):
+    """--color/--mfp-mm instead of --material: the object's material is Material.from_color's (under the default
+    model at the boundary's eta), in render's stats, in the scene written and in reference."""
+    import convsss
+    from convsss.scene.loading import load_scene
+    from convsss.scene.objects import find_translucent_objects
+
+    colour = ("--color", "0.8,0.5,0.3", "--mfp-mm", "1,2,3")
+    expected = convsss.Material.from_color([0.8, 0.5, 0.3], [1, 2, 3], eta=1.4)
+    stats = tmp_path / "r.json"
+    result = run("render", "--mesh", "bunny", *colour, "--eta", 1.4, "--size-mm", 20, "--width", 32, "--height", 24,
+                 "--spp", 1, "-o", tmp_path / "r", "--stats", stats, "--no-progress")
+    assert result.exit_code == 0, result.output
+    obj = json.loads(stats.read_text())["objects"][0]
+    np.testing.assert_allclose(obj["sigma_s_prime_per_mm"], expected.sigma_s_prime, rtol=1e-5)
+    np.testing.assert_allclose(obj["sigma_a_per_mm"], expected.sigma_a, rtol=1e-5)
+    assert obj["eta"] == pytest.approx(1.4)
+
+    out = tmp_path / "colour.xml"
+    result = run("scene", *colour, "--color-model", "pbd", "--boundary", "null", "--size-mm", 20, "--width", 16,
+                 "--height", 16, "--spp", 1, "-o", out)
+    assert result.exit_code == 0, result.output
+    assert '<medium type="homogeneous"' in out.read_text()  # plain Mitsuba loads it
+    made = find_translucent_objects(convsss.register(), load_scene(out))[0].material
+    np.testing.assert_allclose(made.profile("pbd").total_reflectance, [0.8, 0.5, 0.3], atol=1e-3)
+    np.testing.assert_allclose(made.mfp_mm, [1, 2, 3], rtol=1e-5)
+    assert made.eta == 1.0  # a null boundary is index-matched: the colour is inverted at eta 1
+
+    result = run("reference", "--mesh", "bunny", *colour, "--boundary", "null", "--size-mm", 20, "--width", 16,
+                 "--height", 16, "--spp", 1, "-o", tmp_path / "ref", "--no-progress")
+    assert result.exit_code == 0, result.output
+    assert read_image(tmp_path / "ref.exr").max() > 0
+
+
+def test_render_warns_when_the_colour_model_is_not_the_rendered_one(tmp_path):
+    args = ("render", "--mesh", "bunny", "--color", "0.7", "--mfp-mm", "1", "--size-mm", 20, "--width", 16,
+            "--height", 16, "--spp", 1, "--no-progress", "--transport", "hierarchical")
+    result = run(*args, "--profile", "better-dipole", "-o", tmp_path / "a")
+    assert result.exit_code == 0, result.output
+    assert "warning: --color is the total reflectance under the dipole profile but the object renders with " \
+           "better-dipole: give --color-model better-dipole" in result.stderr
+    result = run(*args, "--profile", "better-dipole", "--color-model", "better-dipole", "-o", tmp_path / "b")
+    assert result.exit_code == 0 and "--color-model" not in result.stderr
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--mesh", "bunny", "--material", "skin1", "--color", "0.5", "--mfp-mm", "1", "--size-mm", 10),
+     "give --material or --color/--mfp-mm, not both"),
+    (("--mesh", "bunny", "--color", "0.5", "--size-mm", 10), "--color needs --mfp-mm"),
+    (("--mesh", "bunny", "--mfp-mm", "1", "--size-mm", 10), "--mfp-mm needs --color"),
+    (("--mesh", "bunny", "--color", "1.2,0.5,0.3", "--mfp-mm", "1", "--size-mm", 10),
+     "colour 1.2 in channel R is not reachable by the dipole profile"),
+    (("--mesh", "bunny", "--color", "0.5,-0.1,0.3", "--mfp-mm", "1", "--size-mm", 10), "channel G is not reachable"),
+    (("--mesh", "bunny", "--color", "0.5", "--mfp-mm", "0", "--size-mm", 10), "must be finite and > 0"),
+    (("--mesh", "bunny", "--color", "0.5,0.4", "--mfp-mm", "1", "--size-mm", 10), "give one number or three"),
+    (("--mesh", "bunny", "--color", "0.5", "--mfp-mm", "1", "--eta", 1.4, "--boundary", "null", "--size-mm", 10),
+     "--eta 1.4 is not allowed with --boundary null"),
+    (("--mesh", "bunny", "--material", "skin1", "--eta", 1.4, "--size-mm", 10), "--eta goes with --color"),
+    (("--mesh", "bunny", "--size-mm", 10), "nothing to render"),
+])
+@pytest.mark.parametrize("command", ["render", "reference"])
+def test_bad_colour_input_fails_in_one_line_without_output(tmp_path, command, args, message):
+    result = run(command, *args, "-o", tmp_path / "out", "--no-progress")
+    _assert_clean_failure(result, message, tmp_path)
+
+
+def test_scene_refuses_a_bad_colour_in_one_line(tmp_path):
+    result = run("scene", "--color", "0.5", "--mfp-mm", "-1", "--size-mm", 10, "-o", tmp_path / "s.xml")
+    _assert_refused(result, "mfp_mm=[-1.0, -1.0, -1.0] is not allowed")
+    _assert_refused(run("scene", "--size-mm", 10), "no material: give --material NAME, or --color and --mfp-mm")
+    assert not (tmp_path / "s.xml").exists()
+
+
+NAMED_BAD = {
+    "unknown preset": ('<string name="preset" value="wholemlk"/>',
+                       "convsss_medium: unknown material 'wholemlk'; did you mean 'Wholemilk'"),
+    "preset and coefficients": ('<string name="preset" value="skin1"/><rgb name="sigma_t" value="1"/>',
+                                "a preset and coefficients (sigma_t) given"),
+    "preset and colour": ('<string name="preset" value="skin1"/><rgb name="color" value="0.5"/>'
+                          '<float name="mfp_mm" value="1"/>', "both a preset and color/mfp_mm"),
+    "colour above 1": ('<rgb name="color" value="0.5, 1.5, 0.5"/><float name="mfp_mm" value="1"/>',
+                       "colour 1.5 in channel G is not reachable"),
+    "mfp 0": ('<rgb name="color" value="0.5"/><float name="mfp_mm" value="0"/>', "must be finite and > 0"),
+    "eta of the boundary": ('<string name="preset" value="skin1"/>', "has eta 1.3, but its dielectric boundary"),
+}
+
+
+@pytest.mark.parametrize("command", ["render", "reference"])
+@pytest.mark.parametrize("case", sorted(NAMED_BAD))
+def test_bad_named_media_fail_in_one_line_without_output(tmp_path, command, case):
+    medium, message = NAMED_BAD[case]
+    bsdf = '<bsdf type="dielectric"/>' if case == "eta of the boundary" else '<bsdf type="null"/>'
+    path = _scene_with(tmp_path, f'<shape type="sphere">{bsdf}<medium type="convsss_medium" name="interior">'
+                                 f'{medium}</medium></shape>')
+    result = run(command, path, "-o", tmp_path / "out", "--no-progress")
+    _assert_clean_failure(result, message, tmp_path)
+
+
+def test_the_example_scene_renders_with_convsss_and_volpathmis(tmp_path):
+    example = Path(__file__).parents[2] / "examples" / "skin_preset.xml"
+    for command in ("render", "reference"):
+        out = tmp_path / command
+        result = run(command, example, "-o", out, "--width", 40, "--height", 30, "--spp", 2, "--no-progress")
+        assert result.exit_code == 0, result.output
+        assert read_image(out.with_suffix(".exr")).max() > 0

@@ -17,8 +17,8 @@ from .options import integrator_options, load_source, render_params, scene_sourc
 @click.option("--open/--no-open", "open_browser", default=False, show_default=True,
               help="Open the page in the default browser.")
 @integrator_options
-def edit(scene_file, mesh, material, size_mm, floor, boundary, width, height, spp, seed, target, port, open_browser,
-         **integrator):
+def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height, spp,
+         seed, target, port, open_browser, **integrator):
     """Edit one translucent object's material in a web page served on 127.0.0.1: the render, a preset picker,
     sliders for colour and mean free path, sigma_s' and sigma_a per channel, eta (dielectric boundaries), the
     multiscale transport's accuracy, the profile model, the profile's plot and per-stage seconds.
@@ -42,7 +42,8 @@ def edit(scene_file, mesh, material, size_mm, floor, boundary, width, height, sp
     from ..editor.server import EditorServer
 
     load_mitsuba()
-    scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width or 256, height or 256)
+    scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width or 256, height or 256, color,
+                        mfp_mm, eta, color_model)
     named = scene.integrator()
     base = named.params.to_dict() if named is not None and named.class_name() == "ConvsssIntegrator" else defaults
     click.echo("rendering the first preview...", err=True)

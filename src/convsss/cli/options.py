@@ -1,6 +1,7 @@
-"""Options shared by the commands, in one vocabulary: what to render (a scene file, or ``--mesh/--material/--size-mm``
-with ``--width/--height``), ``--seed``, the tone mapping of PNGs, and one option per integrator parameter, generated
-from the parameters' declarations (:mod:`convsss.parameters`) so that help, defaults and checks are stated once.
+"""Options shared by the commands, in one vocabulary: what to render (a scene file, or ``--mesh``, a material by
+``--material`` or ``--color/--mfp-mm``, and ``--size-mm``, with ``--width/--height``), ``--seed``, the tone mapping of
+PNGs, and one option per integrator parameter, generated from the parameters' declarations (:mod:`convsss.parameters`)
+so that help, defaults and checks are stated once.
 """
 
 import warnings
@@ -25,14 +26,96 @@ def output_stem(output):
     return path.with_suffix("") if path.suffix.lower() in (".exr", ".png") else path
 
 
+MODEL_NAMES = ("dipole", "better-dipole", "pbd", "burley")
+
+
+def color_options(func):
+    """``--color``, ``--mfp-mm``, ``--eta`` and ``--color-model``: a material by colour and distance, the alternative
+    to ``--material`` (shared by the commands that take ``--material``; :func:`source_material`)."""
+    options = [
+        click.option("--color", metavar="R,G,B",
+                     help="Instead of --material: the surface colour, the total diffuse reflectance per channel in "
+                          "(0, 1) (linear), e.g. 0.8,0.5,0.3; with --mfp-mm."),
+        click.option("--mfp-mm", metavar="D|R,G,B",
+                     help="With --color: the reduced mean free path 1/sigma_t' in mm, one number or one per channel."),
+        click.option("--eta", type=float,
+                     help="With --color: the relative index of refraction of a dielectric boundary (a null boundary "
+                          "is eta 1). [default: 1.3]"),
+        click.option("--color-model", type=click.Choice(MODEL_NAMES),
+                     help="With --color: the profile model under which --color is the total reflectance. Give the "
+                          "model you render with (--profile) so the render matches the colour; render and reference "
+                          "must use the same. [default: dipole, the renderer's default]"),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def parse_triple(text, name):
+    """Three floats from ``"R,G,B"`` or one number (repeated), or a one-line error naming option ``name``."""
+    try:
+        values = [float(x) for x in str(text).split(",")]
+    except ValueError:
+        raise ConvsssError(f"{name} {text!r} is not allowed: give one number or three, R,G,B") from None
+    if len(values) not in (1, 3):
+        raise ConvsssError(f"{name} {text!r} is not allowed: give one number or three, R,G,B")
+    return values * 3 if len(values) == 1 else values
+
+
+def source_material(material, color, mfp_mm, eta, color_model, boundary):
+    """The :class:`~convsss.materials.Material` of ``--material NAME`` or of ``--color/--mfp-mm`` (None when neither
+    is given), for an object with ``boundary``; one-line errors for bad combinations and values.
+
+    A colour is inverted by :func:`~convsss.profiles.models.material_from_color` under ``color_model`` (default: the
+    renderer's default profile) at ``eta`` (default 1.3; 1 on a ``null`` boundary, which is index-matched). No
+    :class:`~convsss.materials.OpticallyThinWarning` here: the scene's object says it once, by its own name.
+    """
+    from ..materials import material as lookup_material
+    from ..profiles.models import DEFAULT_PROFILE, material_from_color
+
+    by_color = color is not None or mfp_mm is not None
+    if material and by_color:
+        raise ConvsssError("give --material or --color/--mfp-mm, not both")
+    if not by_color:
+        extra = "--eta" if eta is not None else "--color-model" if color_model is not None else None
+        if extra:
+            raise ConvsssError(f"{extra} goes with --color/--mfp-mm (a preset has its own coefficients and eta)")
+        return lookup_material(material, warn=False) if material else None
+    if color is None or mfp_mm is None:
+        raise ConvsssError(f"{'--color' if color is not None else '--mfp-mm'} needs "
+                           f"{'--mfp-mm' if color is not None else '--color'}: a material by colour needs both")
+    if boundary == "null" and eta is not None and eta != 1.0:
+        raise ConvsssError(f"--eta {eta:g} is not allowed with --boundary null: an index-matched boundary has eta 1")
+    eta = 1.0 if boundary == "null" else (1.3 if eta is None else eta)
+    return material_from_color(parse_triple(color, "--color"), parse_triple(mfp_mm, "--mfp-mm"), eta,
+                               color_model or DEFAULT_PROFILE, name="color", warn=False)
+
+
+def warn_color_model(color_model, profile):
+    """Warn (:class:`~convsss.scene.presets.ColorModelWarning`) when the quick scene's object (``object``), made from
+    ``--color`` under ``color_model``, renders with another profile model (the integrator's ``profile``)."""
+    from ..profiles.models import DEFAULT_PROFILE, parse_profile_spec
+    from ..scene.presets import ColorModelWarning
+
+    default, per_object = parse_profile_spec(profile)
+    spec, model = per_object.get("object", default), color_model or DEFAULT_PROFILE
+    if spec in MODEL_NAMES and spec != model:
+        warnings.warn(f"--color is the total reflectance under the {model} profile but the object renders with "
+                      f"{spec}: give --color-model {spec} to match the colour under {spec}", ColorModelWarning,
+                      stacklevel=2)
+
+
 def scene_source_options(func):
-    """The options that say what to render: a scene file, or ``--mesh/--material/--size-mm`` (shared by commands)."""
+    """The options that say what to render: a scene file, or ``--mesh``, ``--material`` (or ``--color/--mfp-mm``,
+    :func:`color_options`) and ``--size-mm`` (shared by commands)."""
     options = [
         click.argument("scene_file", required=False, type=click.Path(dir_okay=False)),
         click.option("--mesh", type=click.Path(dir_okay=False),
                      help="Without a scene file: a mesh (.obj, .ply, .serialized, y up) framed with a camera, a key "
                           "light and a back light. 'bunny' is the bundled Stanford bunny."),
-        click.option("--material", help="With --mesh: a preset name (see `convsss materials`), e.g. wholemilk."),
+        click.option("--material", help="With --mesh: a preset name (see `convsss materials`), e.g. wholemilk; or "
+                                        "--color and --mfp-mm."),
+        color_options,
         click.option("--size-mm", type=float, help="With --mesh: the object's largest side in mm."),
         click.option("--floor", is_flag=True, help="With --mesh: add a grey floor under the object."),
         click.option("--boundary", type=click.Choice(["dielectric", "roughdielectric", "null"]), default="dielectric",
@@ -99,26 +182,24 @@ def exposure_anchor(exposure_from, tonemap):
     return read_image(exposure_from)
 
 
-def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height):
+def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color=None, mfp_mm=None,
+                eta=None, color_model=None):
     """The loaded scene for the scene-source options; one-line errors for bad combinations."""
-    from ..materials import OpticallyThinWarning
-    from ..materials import material as lookup_material
     from ..scene.loading import load_scene
 
-    if scene_file and (mesh or material or size_mm is not None):
-        raise ConvsssError("give a scene file or --mesh/--material/--size-mm, not both")
+    colored = any(x is not None for x in (color, mfp_mm, eta, color_model))
+    if scene_file and (mesh or material or colored or size_mm is not None):
+        raise ConvsssError("give a scene file or --mesh/--material (or --color/--mfp-mm)/--size-mm, not both")
     if scene_file:
         return load_scene(scene_file, width, height)
-    if not (mesh and material and size_mm is not None):
-        raise ConvsssError("nothing to render: give a scene file, or all of --mesh, --material and --size-mm")
+    made = source_material(material, color, mfp_mm, eta, color_model, boundary)
+    if not (mesh and made is not None and size_mm is not None):
+        raise ConvsssError("nothing to render: give a scene file, or all of --mesh, --material (or --color and "
+                           "--mfp-mm) and --size-mm")
     from ..scene.quick import demo_mesh, quick_scene
 
     mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)
-    with warnings.catch_warnings():  # the scene's object says it once, by its own name
-        warnings.simplefilter("ignore", OpticallyThinWarning)
-        preset = lookup_material(material)
-    scene = quick_scene(mesh_path, preset, size_mm, width or 800, height or 800, floor=floor,
-                        boundary=boundary)
+    scene = quick_scene(mesh_path, made, size_mm, width or 800, height or 800, floor=floor, boundary=boundary)
     return load_scene(scene)
 
 

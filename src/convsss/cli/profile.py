@@ -12,9 +12,9 @@ import click
 from ..errors import ConvsssError
 from ..files import check_outputs, json_ready, text_writer, write_files
 from .main import cli
-from .options import PROGRESS
+from .options import MODEL_NAMES, PROGRESS, parse_triple
 
-MODEL_CHOICE = click.Choice(["dipole", "better-dipole", "pbd", "burley"])
+MODEL_CHOICE = click.Choice(MODEL_NAMES)
 
 
 @cli.group()
@@ -145,16 +145,6 @@ def plot(names, models, output):
     click.echo(f"wrote {output}")
 
 
-def _triple(text, name):
-    try:
-        values = [float(x) for x in str(text).split(",")]
-    except ValueError:
-        raise ConvsssError(f"{name}={text!r} is not allowed: give one number or three, R,G,B") from None
-    if len(values) not in (1, 3):
-        raise ConvsssError(f"{name}={text!r} is not allowed: give one number or three, R,G,B")
-    return values * 3 if len(values) == 1 else values
-
-
 @profile.command()
 @click.option("--color", required=True, metavar="R,G,B",
               help="Total diffuse reflectance per channel (the surface colour, linear), e.g. 0.8,0.5,0.3.")
@@ -175,7 +165,7 @@ def invert(color, mfp_mm, eta, model, unit_mm, as_json):
     from ..scene.materials import medium_parameters
 
     model = model or DEFAULT_PROFILE
-    m = material_from_color(_triple(color, "color"), _triple(mfp_mm, "mfp_mm"), eta, model)
+    m = material_from_color(parse_triple(color, "--color"), parse_triple(mfp_mm, "--mfp-mm"), eta, model)
     medium = medium_parameters(m, unit_mm)
     report = {"model": model, "eta": m.eta, "color": m.profile(model).total_reflectance,
               "sigma_s_prime": m.sigma_s_prime, "sigma_a": m.sigma_a, "albedo_prime": m.albedo_prime,

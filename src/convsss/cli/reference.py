@@ -32,8 +32,8 @@ from .options import (
                    "written) instead of a warning.")
 @tonemap_options
 @PROGRESS
-def reference(scene_file, mesh, material, size_mm, floor, boundary, width, height, spp, seed, output, pass_spp,
-              strict, tonemap, key, exposure, exposure_from, progress):
+def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height,
+              spp, seed, output, pass_spp, strict, tonemap, key, exposure, exposure_from, progress):
     """Render SCENE_FILE with Mitsuba's volumetric path tracer volpathmis: the ground truth of `convsss render`.
 
     Russian roulette is off and paths are unbounded. --spp is the total (default: the scene's sampler), rendered in
@@ -60,7 +60,8 @@ def reference(scene_file, mesh, material, size_mm, floor, boundary, width, heigh
     exr, png, info = (stem.with_suffix(suffix) for suffix in (".exr", ".png", ".json"))
     check_outputs([exr, png, info], [*source_inputs(scene_file, mesh), *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
-    scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height)
+    scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
+                        color_model)
     total_spp = spp if spp is not None else (16 if scene_file is None else scene.sensors()[0].sampler().sample_count())
     bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress)
 

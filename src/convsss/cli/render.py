@@ -25,6 +25,7 @@ from .options import (
     scene_source_options,
     source_inputs,
     tonemap_options,
+    warn_color_model,
 )
 
 STAGES = ("scene_load", "samples", "irradiance", "indirect", "transport", "screen", "shading", "write")
@@ -64,19 +65,21 @@ class StageProgress:
               help="Write a JSON file: parameters, per-stage seconds, grid and FFT shapes, pairs per layer, sample "
                    "count, and the object's size in mean free paths and diffusion lengths.")
 @PROGRESS
-def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, spp, seed, output, tonemap, key,
-           exposure, exposure_from, stats_path, progress, **integrator):
+def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height, spp,
+           seed, output, tonemap, key, exposure, exposure_from, stats_path, progress, **integrator):
     """Render SCENE_FILE (a Mitsuba 3 XML scene) with the convsss integrator, whatever integrator the file names.
 
-    A translucent object is a shape with an interior 'homogeneous' medium and a null, dielectric or
-    roughdielectric BSDF; scene units are mm unless --unit-mm says otherwise. Without a scene file,
+    A translucent object is a shape with an interior 'homogeneous' medium (or a 'convsss_medium' naming a preset
+    or a colour, README) and a null, dielectric or roughdielectric BSDF; scene units are mm unless --unit-mm says
+    otherwise. Without a scene file,
     --mesh/--material/--size-mm build a scene around the mesh (with --specular phong, the paper's highlight, unless
-    given).
+    given); --color/--mfp-mm give the material by its colour and mean free path instead of a preset.
 
     \b
     Examples:
       convsss render scene.xml -o out/scene --spp 16 --stats out/scene.json
       convsss render --mesh bunny --material wholemilk --size-mm 40 --floor -o out/bunny
+      convsss render --mesh bunny --color 0.8,0.5,0.4 --mfp-mm 2 --size-mm 40 -o out/colour
     """
     if spp is not None and spp < 1:
         raise ConvsssError(f"spp={spp} is not allowed: it must be >= 1")
@@ -104,12 +107,15 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
     try:
         bar("scene_load")
         t = time.perf_counter()
-        scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height)
+        scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
+                            color_model)
         base = dict(defaults)
         named = scene.integrator()
         if named is not None and named.class_name() == "ConvsssIntegrator":
             base = named.params.to_dict()
         params = render_params(integrator, base)
+        if color is not None:
+            warn_color_model(color_model, params.profile)
         seconds["scene_load"] = time.perf_counter() - t
         integ = mi.load_dict(params.integrator_dict())
         integ.progress = bar
@@ -121,7 +127,8 @@ def render(scene_file, mesh, material, size_mm, floor, boundary, width, height, 
         from ..image import exr_writer, png_writer
 
         stats = {"command": "render", "scene": str(scene_file) if scene_file else None,
-                 "quick": {"mesh": str(mesh), "material": material, "size_mm": size_mm, "floor": floor,
+                 "quick": {"mesh": str(mesh), "material": material, "color": color, "mfp_mm": mfp_mm, "eta": eta,
+                           "color_model": color_model, "size_mm": size_mm, "floor": floor,
                            "boundary": boundary} if quick else None,
                  "seed": seed, "spp": spp_used, "outputs": {"exr": str(exr), "png": str(png)},
                  "tonemap": {"method": tonemap, "key": key, "exposure": exposure, "exposure_from": exposure_from},

@@ -9,6 +9,7 @@ import click
 from ..errors import ConvsssError
 from ..files import check_outputs, write_text
 from .main import cli
+from .options import color_options, source_material
 
 #: What an object's id may be: a name Mitsuba, XML and ``--profile NAME=...`` all take (no dots, no spaces).
 ID_PATTERN = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
@@ -40,7 +41,8 @@ def mesh_filename(mesh_path, output):
 @cli.command()
 @click.option("--mesh", default="bunny", show_default=True, type=click.Path(dir_okay=False),
               help="Mesh file (.obj, .ply, .serialized, y up); 'bunny' is the bundled Stanford bunny.")
-@click.option("--material", required=True, help="Preset name (see `convsss materials`), e.g. wholemilk.")
+@click.option("--material", help="Preset name (see `convsss materials`), e.g. wholemilk; or --color and --mfp-mm.")
+@color_options
 @click.option("--size-mm", required=True, type=float, help="The object's largest side in mm.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="Scene file to write (default: print to stdout).")
@@ -57,21 +59,25 @@ def mesh_filename(mesh_path, output):
 @click.option("--id", "shape_id",
               help="The object's id (its name in `convsss render --profile ID=...` and the stats). Default: the mesh "
                    "file's name without extension.")
-def scene(mesh, material, size_mm, output, boundary, unit_mm, floor, width, height, spp, object_only, shape_id):
-    """Write a scene with a translucent object made of a preset material, scaled to --size-mm.
+def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boundary, unit_mm, floor, width, height,
+          spp, object_only, shape_id):
+    """Write a scene with a translucent object made of a preset material (or of --color and --mfp-mm, inverted to
+    coefficients under --color-model), scaled to --size-mm.
 
     The medium is written in the sigma_t/scale/albedo form that Mitsuba's RGB mode needs (sigma_t <= 1 and the
     largest value in scale, per scene unit); the scene has a camera, a key light, a back light and Mitsuba's
     volpathmis without Russian roulette as integrator, so it renders as it is with plain Mitsuba (ground truth),
-    with `convsss render SCENE` and with `convsss reference SCENE`. With -o the mesh's path is written relative to
-    the output's folder (keep them together when moving them); printed, it is absolute.
+    with `convsss render SCENE` and with `convsss reference SCENE`. A colour is written as the coefficients it
+    inverts to; to name a preset or a colour in a file you write, use <medium type="convsss_medium"> (README).
+    With -o the mesh's path is written relative to the output's folder (keep them together when moving them);
+    printed, it is absolute.
 
     \b
     Examples:
       convsss scene --material wholemilk --size-mm 40 --boundary null -o milk.xml
       convsss scene --mesh dragon.ply --material marble --size-mm 100 --object-only
+      convsss scene --color 0.8,0.5,0.4 --mfp-mm 2 --size-mm 40 -o colour.xml
     """
-    from ..materials import material as lookup_material
     from ..scene.quick import demo_mesh, quick_scene
     from ..scene.xmlwriter import object_to_xml, scene_to_xml
 
@@ -79,8 +85,10 @@ def scene(mesh, material, size_mm, output, boundary, unit_mm, floor, width, heig
     name = object_id(mesh_path, shape_id)
     if output:
         check_outputs([output], [mesh_path])
-    scene_dict = quick_scene(mesh_path, lookup_material(material), size_mm, width, height, spp, floor, boundary,
-                             unit_mm)
+    made = source_material(material, color, mfp_mm, eta, color_model, boundary)
+    if made is None:
+        raise ConvsssError("no material: give --material NAME, or --color and --mfp-mm")
+    scene_dict = quick_scene(mesh_path, made, size_mm, width, height, spp, floor, boundary, unit_mm)
     shape = {**scene_dict["object"], "filename": mesh_filename(mesh_path, output)}
     if object_only:
         text = object_to_xml(name, shape)

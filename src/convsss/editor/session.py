@@ -264,8 +264,11 @@ class EditSession:
     def _write_scene(self, material):
         """The edited object's medium (``sigma_t``, ``albedo``, ``scale`` per scene unit, its phase's ``g`` kept) and
         boundary ``eta``, in the loaded scene."""
+        from ..scene.presets import forget
+
         mi, obj = self.mi, self.target
         unit = self.integrator.params.unit_mm
+        forget(obj.shape.interior_medium())  # a <medium type="convsss_medium"> edited is no longer its preset or colour
         medium = mi.traverse(obj.shape.interior_medium())
         g = float(np.asarray(medium["phase_function.g"]).reshape(-1)[0]) if "phase_function.g" in medium else 0.0
         sigma_s = material.sigma_s_prime / (1.0 - g)  # the similarity relation, sigma_s' = sigma_s (1 - g)

@@ -145,7 +145,7 @@ def albedo_from_reflectance(model, reflectance, eta):
     return out
 
 
-def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom"):
+def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom", warn=True):
     """A :class:`~convsss.materials.Material` whose ``model`` profile has total reflectance ``color`` and whose
     reduced mean free path ``1/sigma_t'`` is ``mfp_mm`` (pbrt's ``reflectance`` + ``mfp``, Cycles' colour + radius).
 
@@ -162,6 +162,9 @@ def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom"):
         Relative index of the boundary.
     model : str, optional
         The profile model the colour is meant for (default: :data:`DEFAULT_PROFILE`).
+    name : str
+    warn : bool
+        Warn (:class:`~convsss.materials.OpticallyThinWarning`) when a channel's reduced albedo is low.
 
     Returns
     -------
@@ -174,4 +177,5 @@ def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom"):
     if not np.all(np.isfinite(mfp)) or np.any(mfp <= 0):
         raise ConvsssError(f"mfp_mm={np.asarray(mfp_mm).tolist()} is not allowed: it must be finite and > 0 (mm)")
     albedo = albedo_from_reflectance(model, color, eta)
-    return Material.from_reduced(albedo / mfp, (1.0 - albedo) / mfp, eta, name)
+    made = Material(albedo / mfp, (1.0 - albedo) / mfp, eta, name)
+    return made.warn_if_thin() if warn else made

@@ -32,6 +32,7 @@ from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
 from .irradiance import indirect_irradiance, object_samples, sample_count
 from .objects import find_translucent_objects
 from .params import RenderParams, plugin_parameters
+from .presets import register_medium
 from .screen import ScreenExitance
 from .shading import Shader
 
@@ -411,11 +412,13 @@ ConvsssIntegrator.__doc__ = ConvsssIntegrator.__doc__.replace("{table}", plugin_
 
 
 def register():
-    """Register ``convsss`` with Mitsuba (``<integrator type="convsss">``); call before loading a scene."""
+    """Register ``convsss`` with Mitsuba (``<integrator type="convsss">`` and ``<medium type="convsss_medium">``,
+    :mod:`.presets`); call before loading a scene."""
     if mi.variant() != VARIANT:
         raise ConvsssError(f"convsss was loaded in Mitsuba variant {VARIANT!r} and this process now uses "
                            f"{mi.variant()!r}: one process renders in one variant; start a new one")
     mi.register_integrator("convsss", lambda props: ConvsssIntegrator(props))
+    register_medium(mi)
     return mi
 
 

@@ -1,6 +1,7 @@
-"""Loading scenes for rendering: an XML file or a dictionary, with the ``convsss`` integrator registered first and the
-film optionally resized (the camera keeps its field of view; the crop window becomes the whole film); and the files
-an XML scene reads (:func:`scene_inputs`), which no output may overwrite.
+"""Loading scenes for rendering: an XML file or a dictionary, with the ``convsss`` integrator and medium
+(:mod:`.presets`) registered first and the film optionally resized (the camera keeps its field of view; the crop
+window becomes the whole film); and the files an XML scene reads (:func:`scene_inputs`), which no output may
+overwrite.
 
 Scenes load without Mitsuba's optimizations (``optimize=False``): by default Mitsuba merges meshes that share a BSDF
 and a medium into one shape, which would make two separate translucent objects of one material a single object,
@@ -16,6 +17,7 @@ import numpy as np
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
 from .integrator import register
+from .presets import check_named_media
 
 #: ``<string name=...>`` properties that name a file: every plugin's ``filename``, the convsss integrator's ``profile``.
 FILE_PROPERTIES = ("filename", "profile")
@@ -40,7 +42,9 @@ def load_scene(source, width=None, height=None):
     """A loaded ``mitsuba.Scene`` from an XML path or a scene dictionary; ``width``/``height`` resize every film.
 
     Vertex normals that Mitsuba computed are recomputed in a fixed order (:func:`order_vertex_normals`). Raises
-    :class:`~convsss.errors.ConvsssError` (one line) when the file is missing or Mitsuba cannot load it.
+    :class:`~convsss.errors.ConvsssError` (one line) when the file is missing, Mitsuba cannot load it, or a
+    ``<medium type="convsss_medium">`` disagrees with its shape's boundary
+    (:func:`~convsss.scene.presets.check_boundary`).
     """
     mi = load_mitsuba()
     register()
@@ -59,6 +63,7 @@ def load_scene(source, width=None, height=None):
             raise _load_error(error, f"cannot load scene {str(path)!r}") from None
     if not scene.sensors():
         raise ConvsssError("the scene has no sensor (camera) to render from")
+    check_named_media(mi, scene)
     order_vertex_normals(mi, scene)
     for name, value in (("width", width), ("height", height)):
         if value is not None and (int(value) != value or value < 1 or value > 32768):

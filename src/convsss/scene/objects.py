@@ -26,6 +26,7 @@ from ..errors import ConvsssError
 from ..materials import Material
 from ..profiles.models import PROFILE_MODELS, parse_profile_spec, resolve_profile
 from .irradiance import area_scale, sample_surface
+from .presets import check_boundary, check_color_model, named_medium_of
 
 #: Mitsuba class names of the boundaries a translucent object may have.
 BOUNDARY_CLASSES = {"Null": "null", "SmoothDielectric": "dielectric", "RoughDielectric": "roughdielectric"}
@@ -348,7 +349,9 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile=""):
     whose instance id alone also selects it). Each instance of a shapegroup that holds a translucent shape gives an
     object of its own. Raises :class:`~convsss.errors.ConvsssError` for a shape whose interior medium is not
     homogeneous or has varying coefficients, a translucent shape with another BSDF, a boundary with ``eta < 1``, and
-    a profile entry naming no translucent object.
+    a profile entry naming no translucent object, and a ``convsss_medium`` whose boundary or ``unit_mm`` disagrees
+    with it (:func:`~convsss.scene.presets.check_boundary`); warns when a medium given by colour renders with
+    another profile model than the colour's (:class:`~convsss.scene.presets.ColorModelWarning`).
     """
     default_spec, per_object = parse_profile_spec(profile)
     tables = {}  # one TabulatedProfile per CSV file
@@ -362,12 +365,16 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile=""):
             raise ConvsssError(f"shape {name!r} has a {medium.class_name()!r} interior medium: only 'homogeneous' "
                                "media are supported")
         boundary, eta = boundary_eta(mi, shape.bsdf(), name)
+        named = named_medium_of(mi, medium)  # a <medium type="convsss_medium">: a preset, or colour + mfp
+        if named is not None:
+            check_boundary(named, boundary, eta, name, unit_mm)
         mat = medium_material(mi, medium, eta, unit_mm, name)
         index = shape_index(mi, shape)
         if index not in surfaces:
             surfaces[index] = _surface(mi, shape, name)
         to_world = instance_to_world(mi, instance)
         spec = per_object.get(name, per_object.get(name.split("/")[0], default_spec))
+        check_color_model(named, spec, name)
         if spec not in PROFILE_MODELS and spec not in tables:
             tables[spec] = resolve_profile(spec, mat)
         obj = TranslucentObject(shape=shape, name=name, material=mat, boundary=boundary,

@@ -1,0 +1,311 @@
+"""Materials named in scene files: the ``convsss_medium``, a preset or a colour + mean free path that becomes
+Mitsuba's own ``homogeneous`` medium, so that ``volpathmis`` renders the very same file as ground truth.
+
+``<medium type="convsss_medium">`` (registered with the integrator, :func:`convsss.register`) takes
+
+- ``preset`` (string): a name of ``convsss materials`` (case, spaces and punctuation ignored), e.g. ``skin1``; or
+- ``color`` (rgb, float or ``"R,G,B"``) and ``mfp_mm`` (float or rgb): the total diffuse reflectance per channel,
+  in (0, 1), and the reduced mean free path ``1/sigma_t'`` in mm (pbrt's ``reflectance`` + ``mfp``, Cycles' colour
+  + radius), inverted by :func:`~convsss.profiles.models.material_from_color` under
+
+  - ``model`` (string, default ``dipole``, the renderer's default profile): the profile model under which
+    ``color`` is the total reflectance. The file says it, not the integrator: the medium, and so the ground truth,
+    must not change with the integrator's ``profile`` (or ``--profile``);
+  - ``eta`` (float, default 1.3): the boundary's relative index the colour is meant for;
+
+- ``unit_mm`` (float, default 1): mm per scene unit, the convsss integrator's ``unit_mm`` (use one
+  ``<default name="unit_mm" .../>`` for both).
+
+It is built as :func:`~convsss.scene.materials.medium_dict` writes a material, the very medium ``convsss scene``
+writes for a preset (isotropic phase, ``sigma_t / scale / albedo`` per scene unit)::
+
+    sigma_t = (sigma_a + sigma_s') unit_mm,   scale = max_c sigma_t,   albedo = sigma_s' / (sigma_a + sigma_s'),
+
+so a preset by name gives exactly the :class:`~convsss.materials.Material` of ``--material``. A colour gives
+``sigma_s' = alpha' / mfp``, ``sigma_a = (1 - alpha') / mfp`` with ``alpha'`` the reduced albedo whose ``model``
+total reflectance at ``eta`` is the colour.
+
+Mitsuba cannot show a medium its shape's BSDF, so convsss checks the boundary when it loads or renders the scene
+(:func:`check_boundary`; plain Mitsuba does not): a ``dielectric`` or ``roughdielectric`` needs
+``int_ior / ext_ior`` = the preset's eta (``convsss materials`` lists it) or the colour's ``eta``; a ``null``
+boundary (index-matched, eta 1) takes a preset's coefficients as they are, as ``convsss scene --boundary null``
+does, and a colour only with ``eta = 1``. The integrator's ``unit_mm`` must be the medium's. An object rendered
+with another profile model than its colour's ``model`` warns (:class:`ColorModelWarning`): its total reflectance
+is that model's, not quite the colour.
+
+The constructor returns Mitsuba's native medium; which medium came from which ``convsss`` properties is kept here
+(:func:`named_medium_of`), keyed by the medium's address and its coefficients, so an edited medium (the editor
+writes new ones, :func:`forget`) is an ordinary ``homogeneous`` one again.
+"""
+
+import threading
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConvsssError
+from ..materials import Material
+from ..materials import material as preset_material
+from ..profiles.models import DEFAULT_PROFILE, check_model, is_model, material_from_color
+from .materials import medium_dict
+
+#: Mitsuba plugin name of the medium: ``<medium type="convsss_medium">``.
+PLUGIN = "convsss_medium"
+#: What the medium takes, besides ``preset`` or ``color`` + ``mfp_mm``.
+OPTIONS = ("eta", "model", "unit_mm")
+#: The homogeneous medium's own coefficients: not with a preset or a colour.
+COEFFICIENTS = ("sigma_t", "albedo", "scale", "sigma_s", "sigma_a", "sigma_s_prime", "phase", "phase_function")
+#: Index the colour is inverted at when the medium gives no ``eta`` (a preset has its own).
+DEFAULT_ETA = 1.3
+#: Relative difference up to which the boundary's eta (float32 in Mitsuba) is the medium's.
+ETA_TOLERANCE = 1e-5
+
+
+class ColorModelWarning(UserWarning):
+    """An object whose medium is given by colour renders with another profile model than the colour's."""
+
+
+@dataclass(frozen=True, eq=False)
+class NamedMedium:
+    """What a ``convsss_medium`` was given, and the material it stands for.
+
+    Attributes
+    ----------
+    material : Material      coefficients in 1/mm; ``eta`` the preset's or the colour's
+    unit_mm : float          mm per scene unit the medium was written in
+    preset : str or None     the preset's name as the catalogue spells it
+    color : tuple or None    total reflectance per channel (a colour medium)
+    mfp_mm : tuple or None   reduced mean free path per channel, mm (a colour medium)
+    model : str or None      the profile model the colour is inverted under (a colour medium)
+    """
+
+    material: Material
+    unit_mm: float = 1.0
+    preset: str = None
+    color: tuple = None
+    mfp_mm: tuple = None
+    model: str = None
+
+    @property
+    def eta(self):
+        return self.material.eta
+
+    def describe(self):
+        """``preset 'Skin1'`` or ``color 0.8,0.5,0.3, mfp_mm 2 (dipole, eta 1.3)``, for messages and the stats."""
+        if self.preset is not None:
+            return f"preset {self.preset!r}"
+
+        def listed(values):
+            return ",".join(f"{x:g}" for x in (values if len(set(values)) > 1 else values[:1]))
+
+        return f"color {listed(self.color)}, mfp_mm {listed(self.mfp_mm)} ({self.model}, eta {self.eta:g})"
+
+    def medium_dict(self):
+        """The Mitsuba ``homogeneous`` medium this stands for (:func:`~convsss.scene.materials.medium_dict`)."""
+        return medium_dict(self.material, self.unit_mm)
+
+
+def _triple(value, key):
+    """An RGB triple of floats from a Mitsuba property value: a number, a colour, a sequence or ``"R,G,B"``."""
+    if isinstance(value, str):
+        parts = value.split(",")
+    elif isinstance(value, bool):
+        parts = None
+    else:
+        try:
+            parts = list(np.asarray(value, dtype=np.float64).reshape(-1))
+        except (TypeError, ValueError):
+            parts = None
+    try:
+        values = [float(x) for x in parts] if parts is not None else []
+    except ValueError:
+        values = []
+    if len(values) not in (1, 3):
+        raise ConvsssError(f"convsss_medium: {key}={value!r} is not allowed: give one number or three (R, G, B), "
+                           "as a float, an rgb or a string 'R,G,B'")
+    return tuple(values * 3 if len(values) == 1 else values)
+
+
+def _number(value, key):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ConvsssError(f"convsss_medium: {key}={value!r} is not allowed: give a number")
+    return float(value)
+
+
+def named_medium(values):
+    """The :class:`NamedMedium` for a ``convsss_medium``'s properties ``values`` (a dict), checked.
+
+    Parameters
+    ----------
+    values : dict
+        ``preset``, or ``color`` + ``mfp_mm`` (+ ``eta``, ``model``); ``unit_mm`` (module docstring).
+
+    Returns
+    -------
+    NamedMedium
+
+    Raises
+    ------
+    ConvsssError
+        One line: an unknown preset (with the closest names), a colour outside what the model reaches, an
+        ``mfp_mm`` <= 0, a preset and a colour or coefficients together, an unknown property.
+
+    Examples
+    --------
+    >>> named_medium({"preset": "skin1"}).describe()
+    "preset 'Skin1'"
+    >>> m = named_medium({"color": [0.8, 0.5, 0.3], "mfp_mm": 2.0})
+    >>> m.model, m.eta, m.material.mfp_mm.tolist()
+    ('dipole', 1.3, [2.0, 2.0, 2.0])
+    """
+    values = dict(values)
+    coefficients = [k for k in values if k in COEFFICIENTS]
+    unknown = [k for k in values if k not in ("preset", "color", "mfp_mm", *OPTIONS, *COEFFICIENTS)]
+    if unknown:
+        raise ConvsssError(f"convsss_medium: unknown property {unknown[0]!r}: it takes preset, or color and mfp_mm "
+                           f"(with eta, model), and unit_mm")
+    by_color = "color" in values or "mfp_mm" in values
+    if coefficients:
+        given = "a preset" if "preset" in values else "color + mfp_mm" if by_color else "no preset nor colour"
+        raise ConvsssError(f"convsss_medium: {given} and coefficients ({', '.join(coefficients)}) given: the "
+                           "medium takes a preset or color + mfp_mm; for coefficients use a 'homogeneous' medium")
+    unit_mm = _number(values.get("unit_mm", 1.0), "unit_mm")
+    if not np.isfinite(unit_mm) or unit_mm <= 0:
+        raise ConvsssError(f"convsss_medium: unit_mm={unit_mm!r} is not allowed: it must be finite and > 0 (mm per "
+                           "scene unit)")
+    if "preset" in values:
+        if by_color:
+            raise ConvsssError("convsss_medium: both a preset and color/mfp_mm given: give a preset, or color and "
+                               "mfp_mm")
+        extra = [k for k in ("eta", "model") if k in values]
+        if extra:
+            raise ConvsssError(f"convsss_medium: {extra[0]} goes with color and mfp_mm; a preset has its own "
+                               "coefficients and eta (`convsss materials` lists them)")
+        if not isinstance(values["preset"], str):
+            raise ConvsssError(f"convsss_medium: preset={values['preset']!r} is not allowed: give a name")
+        try:
+            found = preset_material(values["preset"], warn=False)
+        except ConvsssError as error:
+            raise ConvsssError(f"convsss_medium: {error}") from None
+        return NamedMedium(found, unit_mm, preset=found.name)
+    if not by_color:
+        raise ConvsssError("convsss_medium: nothing given: it needs a preset, or color and mfp_mm")
+    if "color" not in values or "mfp_mm" not in values:
+        raise ConvsssError(f"convsss_medium: {'color' if 'color' in values else 'mfp_mm'} without "
+                           f"{'mfp_mm' if 'color' in values else 'color'}: a colour needs both")
+    model = values.get("model", DEFAULT_PROFILE)
+    if not isinstance(model, str):
+        raise ConvsssError(f"convsss_medium: model={model!r} is not allowed: give a model's name")
+    eta = _number(values.get("eta", DEFAULT_ETA), "eta")
+    color, mfp = _triple(values["color"], "color"), _triple(values["mfp_mm"], "mfp_mm")
+    try:
+        model = check_model(model)
+        found = material_from_color(color, mfp, eta, model, name="color", warn=False)
+    except ConvsssError as error:
+        raise ConvsssError(f"convsss_medium: {error}") from None
+    return NamedMedium(found, unit_mm, color=color, mfp_mm=mfp, model=model)
+
+
+# ---- The Mitsuba plugin ----------------------------------------------------------------------------------------
+
+#: Per medium made: its address -> (NamedMedium, its coefficients as made). Guarded by :data:`_LOCK` (Mitsuba
+#: builds a scene's objects on several threads).
+_MADE = {}
+_LOCK = threading.Lock()
+
+
+def _fingerprint(mi, medium):
+    """The medium's coefficients as Mitsuba holds them (sigma_t, albedo, scale), or None for another kind."""
+    params = mi.traverse(medium)
+    keys = ("sigma_t.value.value", "albedo.value.value", "scale")
+    if not all(k in params for k in keys):
+        return None
+    return tuple(tuple(np.asarray(params[k], dtype=np.float64).reshape(-1).tolist()) for k in keys)
+
+
+def construct(props):
+    """The ``convsss_medium``'s constructor: Mitsuba's ``homogeneous`` medium of :func:`named_medium`."""
+    from ..backend import load_mitsuba
+
+    mi = load_mitsuba()
+    named = named_medium({key: props[key] for key in props.keys()})  # reading a property marks it as used
+    medium = mi.load_dict(named.medium_dict())
+    if props.id():
+        medium.set_id(props.id())
+    with _LOCK:
+        _MADE[medium.ptr] = (named, _fingerprint(mi, medium))
+    return medium
+
+
+def register_medium(mi):
+    """Register ``<medium type="convsss_medium">`` with Mitsuba (in the active variant)."""
+    mi.register_medium(PLUGIN, construct)
+
+
+def named_medium_of(mi, medium):
+    """The :class:`NamedMedium` a ``convsss_medium`` made ``medium`` from, or None (another medium, or one whose
+    coefficients changed since)."""
+    if medium is None:
+        return None
+    with _LOCK:
+        made = _MADE.get(medium.ptr)
+    if made is None or _fingerprint(mi, medium) != made[1]:
+        return None
+    return made[0]
+
+
+def forget(medium):
+    """``medium`` is no longer what its ``convsss`` properties said (its coefficients were edited)."""
+    with _LOCK:
+        _MADE.pop(medium.ptr, None)
+
+
+# ---- Checks against the object ---------------------------------------------------------------------------------
+
+def check_boundary(named, boundary, eta, name, unit_mm=None):
+    """A one-line error unless translucent shape ``name``'s ``boundary`` (kind, relative index ``eta``) and the
+    renderer's ``unit_mm`` (None: not checked) agree with its ``convsss_medium`` ``named``."""
+    what = f"translucent shape {name!r}: its convsss_medium ({named.describe()})"
+    if boundary == "null":
+        if named.color is not None and abs(named.eta - 1.0) > ETA_TOLERANCE:
+            raise ConvsssError(f"{what} is inverted at eta {named.eta:g}, but its boundary is null (index-matched, "
+                               "eta 1): give the medium eta 1, or the shape a dielectric boundary with int_ior "
+                               f"{named.eta:g}")
+    elif abs(eta - named.eta) > ETA_TOLERANCE * named.eta:
+        hint = f"give the {boundary} int_ior {named.eta:g} and ext_ior 1 (Mitsuba's default ext_ior is air, 1.000277)"
+        if named.color is not None:
+            hint += f", or the medium eta {eta:.6g}"
+        raise ConvsssError(f"{what} has eta {named.eta:g}, but its {boundary} boundary has int_ior/ext_ior "
+                           f"{eta:.6g}: {hint}")
+    if unit_mm is not None and abs(float(unit_mm) - named.unit_mm) > 1e-9 * named.unit_mm:
+        raise ConvsssError(f"{what} is written for unit_mm {named.unit_mm:g} (mm per scene unit), but the render "
+                           f"uses unit_mm {float(unit_mm):g}: give both the same value (one <default "
+                           "name=\"unit_mm\"> for the integrator and the medium)")
+
+
+def check_color_model(named, spec, name):
+    """Warn (:class:`ColorModelWarning`) when translucent shape ``name``, whose medium ``named`` is given by colour,
+    renders with the profile model ``spec`` other than the colour's (a tabulated profile: no warning)."""
+    if named is None or named.color is None or not is_model(spec) or spec == named.model:
+        return
+    total = named.material.profile(spec).total_reflectance
+    warnings.warn(f"translucent shape {name!r}: its colour {np.round(named.color, 4).tolist()} is inverted under "
+                  f"the {named.model} profile but it renders with {spec}, whose total reflectance is "
+                  f"{np.round(total, 4).tolist()}; give the medium model {spec!r} to match the colour under {spec}",
+                  ColorModelWarning, stacklevel=3)
+
+
+def check_named_media(mi, scene):
+    """:func:`check_boundary` (without units) for every shape of ``scene`` whose interior is a ``convsss_medium``;
+    what ``convsss reference`` and :func:`~convsss.scene.loading.load_scene` check."""
+    with _LOCK:
+        if not _MADE:
+            return
+    from .objects import boundary_eta, scene_surfaces
+
+    for name, shape, _ in scene_surfaces(mi, scene):
+        named = named_medium_of(mi, shape.interior_medium())
+        if named is not None:
+            boundary, eta = boundary_eta(mi, shape.bsdf(), name)
+            check_boundary(named, boundary, eta, name)
