@@ -1,0 +1,34 @@
+"""The example notebook (examples/notebook.py, jupytext's percent format) runs from start to end, as a script."""
+
+import runpy
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+NOTEBOOK = Path(__file__).resolve().parents[1] / "examples" / "notebook.py"
+
+
+@pytest.fixture(scope="module")
+def notebook(tmp_path_factory):
+    out = tmp_path_factory.mktemp("notebook")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("CONVSSS_EXAMPLE_OUT", str(out))
+        patch.setenv("CONVSSS_EXAMPLE_SIZE", "48")
+        return out, runpy.run_path(str(NOTEBOOK), run_name="__main__")
+
+
+def test_writes_every_image_and_the_profile_plot(notebook):
+    out, _ = notebook
+    names = {p.name for p in out.iterdir()}
+    assert {"milk.png", "mfp-0.5mm.png", "mfp-2mm.png", "mfp-8mm.png", "profiles.png"} <= names
+    assert all((out / name).stat().st_size > 0 for name in names)
+
+
+def test_a_material_edit_rebuilds_the_transports_only(notebook):
+    _, ns = notebook
+    seconds = ns["integrator"].stats["seconds"]
+    assert "transport" in seconds and "samples" not in seconds and "irradiance" not in seconds
+    means = ns["means"]
+    # The same colour with a longer mean free path: a different image, light spread farther through the sphere.
+    assert not np.allclose(means[0.5], means[8.0], rtol=1e-3)
