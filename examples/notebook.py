@@ -101,7 +101,8 @@ for mfp in (0.5, 2.0, 8.0):  # the same colour, light travelling farther and far
     edited = np.asarray(integrator.render_prepared())
     mi.util.write_bitmap(str(OUT / f"mfp-{mfp:g}mm.png"), edited)
     means[mfp] = edited.reshape(-1, edited.shape[-1])[:, :3].mean(axis=0)
-    print(f"mfp {mfp:g} mm: mean RGB {np.round(means[mfp], 4)}, transport {integrator.stats['seconds']['transport']:.2f} s")
+    seconds = integrator.stats["seconds"]["transport"]
+    print(f"mfp {mfp:g} mm: mean RGB {np.round(means[mfp], 4)}, transport {seconds:.2f} s")
 
 # %% [markdown]
 # ## Profiles
