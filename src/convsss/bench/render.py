@@ -42,12 +42,15 @@ def demo_scene(mi, width, spp):
                                     integrator={"type": "convsss", "specular": "phong"}))
 
 
-def _timed(mi, scene, **options):
-    """Wall seconds of ``mi.render(scene, **options)``, its image evaluated."""
+def _timed(scene, **options):
+    """Wall seconds of ``mi.render(scene, **options)``, its image evaluated (:func:`convsss.render`: the
+    integrator's own errors)."""
     import drjit as dr
 
+    import convsss
+
     start = time.perf_counter()
-    image = mi.render(scene, **options)
+    image = convsss.render(scene, **options)
     dr.eval(image)
     dr.sync_thread()
     return time.perf_counter() - start
@@ -70,9 +73,9 @@ def bench_render(resolutions=RESOLUTIONS, spps=SPPS, runs=5, progress=True):
         stages, ours, theirs = {name: [] for name in STAGES}, [], []
         for run in range(runs + 1):
             bar.set_postfix_str(f"{width}² {spp} spp" + (" (warm-up)" if run == 0 else ""))
-            seconds = _timed(mi, scene, seed=run, spp=spp)
+            seconds = _timed(scene, seed=run, spp=spp)
             bar.update()
-            path_seconds = _timed(mi, scene, integrator=path, seed=run, spp=spp)
+            path_seconds = _timed(scene, integrator=path, seed=run, spp=spp)
             bar.update()
             if run == 0:
                 continue

@@ -45,8 +45,10 @@ class VisibilityWarning(UserWarning):
     """A translucent object is not seen by the camera and is skipped."""
 
 
-#: Bytes per path of the path loop (its state, the recorded hits, the image samples): measured order of magnitude.
-BYTES_PER_PATH = 600
+#: Bytes per path of the shading (the symbolic loop's outputs, the recorded hits' room of 44 bytes a lane, the film's
+#: samples): the peak resident memory grew by 58 and 89 bytes a path over the prepared state's at 800² 16 and 64 spp
+#: on the demo; with a margin.
+BYTES_PER_PATH = 120
 #: Bytes per surface sample held while the transport is built (about 325 measured; irradiance runs in chunks).
 BYTES_PER_SAMPLE = 400
 #: Irradiance rays traced per second on the project's 2-core machine (bunny under a constant environment).
