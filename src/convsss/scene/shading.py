@@ -88,7 +88,7 @@ class Shader:
         self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
 
     # --- per-bounce pieces ----------------------------------------------------------------------------------------
-    def _classify(self, si):
+    def classify(self, si):
         """Per lane: the index of the translucent object hit (mi.Int32, -1: none) and its eta (mi.Float).
 
         An object is the pair (instance, shape): an instanced shape is shared by every instance of its shapegroup,
@@ -115,6 +115,10 @@ class Shader:
             tags.append(tag)
             values.append(weight * self._exitance(transports[k], points, normals))
         return np.concatenate(tags), np.concatenate(values)
+
+    def exitance(self, k, points, normals):
+        """Object ``k``'s ``M`` (K, 3) at ``points`` (mm) with outward ``normals``, from its transport (numpy)."""
+        return self._exitance(self.transports[k], points, normals)
 
     def _exitance(self, transport, points, normals):
         """``transport``'s ``M`` at ``points`` (mm; (K, 3) numpy), asked in chunks of its ``query_batch``; chunks
@@ -254,7 +258,7 @@ class Shader:
             contribution = dr.select(seen, self._emission(si, prev_p, prev_n, prev_pdf, prev_delta) * throughput,
                                      0.0)
             alive = active & si.is_valid() & (depth + 1 < max_depth)
-            which, eta = self._classify(si)
+            which, eta = self.classify(si)
             translucent = alive & (which >= 0)
             # Paper Eq. 7: (1/pi) F_t(eta, w_o) M(x_o) on translucent objects.
             weight = throughput * (1.0 - mi.fresnel(dr.abs(si.wi.z), eta)[0]) / dr.pi
