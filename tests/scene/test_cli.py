@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -108,6 +109,16 @@ def test_aovs_and_mask_land_in_the_exr_and_a_png_and_compare_uses_them(tmp_path)
     assert result.exit_code == 0, result.output
     report = json.loads(result.output)
     assert report["pixels"] == np.count_nonzero(mask) and report["mask_source"]["channel"] == "mask"
+
+
+def test_mask_keeps_the_scenes_own_aovs(studio):
+    text = re.sub(r'<integrator type="volpathmis">.*?</integrator>', '<integrator type="convsss"><string '
+                  'name="aovs" value="depth"/></integrator>', (studio / "studio.xml").read_text(), flags=re.DOTALL)
+    (studio / "aovs.xml").write_text(text)
+    result = run("render", "aovs.xml", "-o", "out", "--mask", "--no-progress", "--irradiance-samples", 2)
+    assert result.exit_code == 0, result.output
+    assert sorted(read_layers(studio / "out.exr")) == ["", "depth", "mask"]
+    assert (studio / "out-mask.png").is_file()
 
 
 @pytest.mark.parametrize("aovs, message", [

@@ -111,6 +111,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
     anchor = exposure_anchor(exposure_from, tonemap)
 
     from ..backend import load_mitsuba
+    from ..scene.integrator import scene_parameters
 
     mi = load_mitsuba()
     seconds = {}
@@ -120,10 +121,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         t = time.perf_counter()
         scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
                             color_model)
-        base = dict(defaults)
-        named = scene.integrator()
-        if named is not None and named.class_name() == "ConvsssIntegrator":
-            base = named.params.to_dict()
+        base = scene_parameters(scene) or dict(defaults)
         params = render_params(integrator, base)
         if color is not None:
             warn_color_model(color_model, params.profile)

@@ -431,6 +431,13 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
 ConvsssIntegrator.__doc__ = ConvsssIntegrator.__doc__.replace("{table}", plugin_parameters().replace("\n", "\n    "))
 
 
+def scene_parameters(scene):
+    """The parameters (a dict) of the ``convsss`` integrator a loaded scene names, or None when it names another or
+    none. (Mitsuba reports a Python plugin's ``class_name()`` as ``SamplingIntegrator``: ask the object's type.)"""
+    named = scene.integrator()
+    return named.params.to_dict() if isinstance(named, ConvsssIntegrator) else None
+
+
 def register():
     """Register ``convsss`` with Mitsuba (``<integrator type="convsss">`` and ``<medium type="convsss_medium">``,
     :mod:`.presets`); call before loading a scene."""
