@@ -45,7 +45,8 @@ def test_help_explains_every_option():
         assert "--output" in result.output or command == "scene"
     text = run("render", "--help").output
     for option in ("--layers", "--threshold", "--downsample", "--spp", "--transport", "--width", "--height",
-                   "--stats", "--tonemap", "--exposure", "--mesh", "--material", "--size-mm", "--floor"):
+                   "--stats", "--tonemap", "--exposure", "--mesh", "--material", "--size-mm", "--floor", "--aovs",
+                   "--mask", "exitance", "irradiance"):
         assert option in text
 
 
