@@ -129,13 +129,14 @@ class LocalIrradiance:
             return np.zeros((0, 3))
         _, index = self._tree.query(points, k=self.neighbours, workers=-1)
         index = index.reshape(len(points), -1)
-        weight = np.broadcast_to(self.samples.area[index], index.shape).copy()
+        weight = self.samples.area[index]
         if normals is not None and self.samples.normal is not None:
-            facing = np.einsum("kj,knj->kn", as_points(normals, "normals"), self.samples.normal[index])
-            weight[facing < self.cos_limit] = 0.0
+            normals = as_points(normals, "normals")
+            facing = sum(normals[:, c, None] * self.samples.normal[index, c] for c in range(3))
+            weight = np.where(facing >= self.cos_limit, weight, 0.0)
             weight[weight.sum(axis=1) == 0, 0] = 1.0  # none on this side: the nearest sample
         weight /= weight.sum(axis=1, keepdims=True)
-        return np.einsum("kn,knc->kc", weight, self.samples.irradiance[index])
+        return np.stack([(weight * self.samples.irradiance[index, c]).sum(axis=1) for c in range(3)], axis=1)
 
 
 @dataclass(frozen=True, eq=False)

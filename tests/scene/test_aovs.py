@@ -80,6 +80,8 @@ def test_exitance_is_what_the_sphere_pixels_are_made_of(mi, sphere_scene, monkey
     assert covered.sum() > 100 and np.all(exitance[covered] > 0)
     np.testing.assert_allclose(np.pi * image[covered][:, :3], exitance[covered], rtol=1e-5)
     np.testing.assert_array_equal(exitance[aov["mask.Y"] == 0], 0.0)
+    plain, _ = _render(mi, sphere_scene(floor=True, res=32, spp=2))  # the AOV asked the transports nothing more
+    assert scene.integrator().stats["exitance_lookups"] == plain.integrator().stats["exitance_lookups"]
 
 
 def test_irradiance_is_the_point_lights_cosine_over_r2(mi, sphere_scene):
@@ -153,3 +155,16 @@ def test_bad_aov_names_are_one_line_errors(mi, aovs, message):
 
 def test_spaces_and_empty_entries_are_allowed(mi):
     assert mi.load_dict({"type": "convsss", "aovs": " depth , ,object "}).aov_names() == ["depth.T", "object.I"]
+
+
+def test_exitance_without_shading_paths_is_asked_of_the_transport(mi, sphere_scene, monkeypatch):
+    """``max_depth`` 1 (emitters only): the shading asks for no ``M``, so the AOV asks the transport itself (the
+    screen table disabled): the same exitance as in the full render."""
+    from convsss.scene.screen import ScreenExitance
+
+    monkeypatch.setattr(ScreenExitance, "_projection_agrees", lambda *args: False)
+    images = [_render(mi, sphere_scene(res=24, spp=2, integrator={"aovs": "exitance", "max_depth": depth}))[1]
+              for depth in (1, 6)]
+    assert np.count_nonzero(images[1][..., :3]) > 100 and not np.any(images[0][..., :3])
+    assert np.count_nonzero(images[0][..., 3:]) > 100
+    np.testing.assert_allclose(images[0][..., 3:], images[1][..., 3:], rtol=1e-6)

@@ -66,7 +66,9 @@ class FirstHitAOVs:
         self._irradiance = {}  # object index -> LocalIrradiance, built when first asked
 
     def __call__(self, ray):
-        """The AOV channels for a batch of camera rays: a list of ``mi.Float``, one per name of :attr:`channels`."""
+        """The AOV channels for a batch of camera rays: a list of ``mi.Float``, one per name of :attr:`channels`.
+
+        Called right after the shader shaded the same ``ray`` object, ``exitance`` reuses what its transports gave."""
         if not self.names:
             return []
         shader = self.shader
@@ -75,24 +77,31 @@ class FirstHitAOVs:
         which, _ = shader.classify(si)
         values = {}
         if "exitance" in self.names or "irradiance" in self.names:
-            values["exitance"], values["irradiance"] = self._surface(si, which)
+            values["exitance"], values["irradiance"] = self._surface(ray, si, which)
         values["object"] = [mi.Float(which + 1)]
         values["mask"] = [dr.select(which >= 0, mi.Float(1.0), mi.Float(0.0))]
         values["depth"] = [dr.select(valid, si.t, 0.0)]
         values["normal"] = _channels(dr.select(valid, si.sh_frame.n, 0.0))
         return [channel for name in self.names for channel in values[name]]
 
-    def _surface(self, si, which):
-        """``(exitance, irradiance)`` channel lists at the hits ``si`` on translucent objects (``which >= 0``).
+    def _surface(self, ray, si, which):
+        """``(exitance, irradiance)`` channel lists at the hits ``si`` of ``ray`` on translucent objects.
 
-        ``M`` from the screen table where it is known there, else (and ``E`` everywhere) asked in numpy of each
-        object's transport and samples, at the hit in mm with the outward normal, as the shading asks it."""
+        ``M`` as the shading of the same rays had it (:meth:`~.shading.Shader.shade`: the screen table's, else what
+        its transports gave, :attr:`~.shading.Shader.first_recorded`); what neither knows (paths that end at the
+        first hit, ``max_depth`` 1) and ``E`` are asked in numpy of each object's transport and samples, at the hit
+        in mm with the outward normal."""
         shader = self.shader
         n = dr.width(si.p)
         exitance = dr.zeros(mi.Color3f, n)
         known = dr.zeros(mi.Bool, n)
-        if shader.screen is not None and "exitance" in self.names:
-            exitance, known = shader.screen.lookup(si, which)
+        if "exitance" in self.names:
+            if shader.screen is not None:
+                exitance, known = shader.screen.lookup(si, which)
+            rays, recorded, values = shader.first_recorded
+            if rays is ray and len(recorded):
+                exitance = _scatter(exitance, values, recorded)
+                dr.scatter(known, True, mi.UInt32(recorded.astype(np.uint32)))
         irradiance = dr.zeros(mi.Color3f, n)
         asked = (which >= 0) if "irradiance" in self.names else (which >= 0) & ~known
         lanes = dr.compress(asked)
