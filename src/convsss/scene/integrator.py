@@ -50,6 +50,9 @@ class VisibilityWarning(UserWarning):
 #: samples): the peak resident memory grew by 58 and 89 bytes a path over the prepared state's at 800² 16 and 64 spp
 #: on the demo; with a margin.
 BYTES_PER_PATH = 120
+#: More bytes per path and AOV channel (:mod:`.aovs`): the peak grew by 25, 59 and 130 bytes a path over the prepared
+#: state's with none, 6 (object, mask, depth, normal) and all 12 channels at 512² 16 spp on the demo; with a margin.
+BYTES_PER_AOV_CHANNEL = 12
 #: Bytes per surface sample held while the transport is built (about 325 measured; irradiance runs in chunks).
 BYTES_PER_SAMPLE = 400
 #: Irradiance rays traced per second on the project's 2-core machine (bunny under a constant environment).
@@ -370,7 +373,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         size = film.crop_size()
         spp_used = spp if spp else sensor.sampler().sample_count()
         per_pass = min(spp_used, self.samples_per_pass) if self.samples_per_pass > 0 else spp_used
-        check_memory(int(size[0]) * int(size[1]) * per_pass * BYTES_PER_PATH,
+        per_path = BYTES_PER_PATH + BYTES_PER_AOV_CHANNEL * len(self.aov_names())
+        check_memory(int(size[0]) * int(size[1]) * per_pass * per_path,
                      f"{size[0]}x{size[1]} pixels at {per_pass} samples per pass",
                      "set the integrator's samples_per_pass (e.g. 4) or render fewer spp")
         self.prepare(scene, sensor, seed)
