@@ -112,10 +112,11 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     **Stats and stages.** After a render, :attr:`stats` holds ``seconds`` per stage (``samples``, ``irradiance``,
     ``indirect``, ``transport``, ``screen``, ``shading``), ``parameters``, ``objects`` (per object: material, sample
     count, cell size, flux direct / indirect / from translucent objects, size in mean free paths), ``transports``
-    (each transport's own statistics), ``film``, ``screen_exitance`` and ``translucent_passes``. :meth:`prepare` runs
-    stages 1-3 alone (objects, samples, transports; kept in :attr:`prepared`, a :class:`PreparedState`),
-    :meth:`render_prepared` shades them, :meth:`retransport` rebuilds the transports; a convolution transport's
-    :meth:`~convsss.transport.convolution.ConvolutionTransport.layer_image` shows one layer's exitance ``M_l``.
+    (each transport's own statistics), ``samples``, ``hidden``, ``film``, ``screen_exitance``, ``exitance_lookups``
+    and ``translucent_passes``. :meth:`prepare` runs stages 1-3 alone (objects, samples, transports; kept in
+    :attr:`prepared`, a :class:`PreparedState`), :meth:`render_prepared` shades them, :meth:`retransport` rebuilds the
+    transports; a convolution transport's :meth:`~convsss.transport.convolution.ConvolutionTransport.layer_image`
+    shows one layer's exitance ``M_l``.
     """
 
     def __init__(self, props):
