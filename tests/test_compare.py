@@ -5,9 +5,10 @@ import pytest
 from click.testing import CliRunner
 
 from convsss.cli import cli
-from convsss.compare import METRICS, block_average, compare, error_image, object_mask
+from convsss.compare import METRICS, block_average, compare, error_image, mask_layer, object_mask
 from convsss.errors import ConvsssError
-from convsss.image import read_image, write_exr, write_png
+from convsss.files import atomic_write
+from convsss.image import exr_writer, read_image, write_exr, write_png
 
 
 def disc_image(h=48, w=64, seed=0):
@@ -203,7 +204,62 @@ def test_cli_missing_file(exr_pair, tmp_path):
     assert result.exit_code == 2 and "does not exist" in result.output
 
 
+def test_mask_layer_prefers_mask_then_object_and_finds_nested_ones():
+    ones = np.ones((2, 2, 1))
+    assert mask_layer({"": ones}) is None and mask_layer({"exitance": ones}) is None
+    assert mask_layer({"object": 0 * ones, "mask": ones})[0] == "mask"
+    name, inside = mask_layer({"sss.object": np.array([[[0.0], [-0.1]], [[np.nan], [0.4]]])})
+    assert name == "sss.object" and inside.tolist() == [[False, False], [False, True]]
+
+
+@pytest.fixture
+def floor_pair(tmp_path):
+    """A disc on a lit floor (every pixel non-black), as a reference without AOVs and a test 1.25x as bright on the
+    disc with the integrator's ``object`` and ``mask`` channels."""
+    disc, inside = disc_image()
+    floor = np.where(inside[..., None], disc, 0.3)
+    test = np.where(inside[..., None], 1.25 * disc, 0.3)
+    aovs = np.concatenate([test, inside[..., None] * [1.0, 1.0]], axis=2)
+    paths = {"ref": tmp_path / "ref.exr", "test": tmp_path / "test.exr", "both": tmp_path / "both.exr"}
+    write_exr(paths["ref"], floor)
+    atomic_write(paths["test"], exr_writer(aovs, ["R", "G", "B", "object.I", "mask.Y"]))
+    ring = inside & ~np.roll(inside, 3, axis=1)  # another mask in the reference: it comes first
+    atomic_write(paths["both"], exr_writer(np.concatenate([floor, ring[..., None]], axis=2),
+                                           ["R", "G", "B", "object.I"]))
+    return paths, inside, ring
+
+
+def test_cli_uses_a_mask_channel_and_says_so(floor_pair):
+    """The test image's mask channel: only the disc's pixels compared (the scale is 1.25 there, the floor would pull it
+    towards 1); without it (--no-mask-channels), every non-black pixel of the reference."""
+    paths, inside, ring = floor_pair
+    report = json.loads(run("compare", paths["ref"], paths["test"], "--json").output)
+    assert report["pixels"] == inside.sum() < inside.size
+    assert report["mask_source"] == {"kind": "channel", "image": str(paths["test"]), "channel": "mask"}
+    assert report["mask"] is None
+    np.testing.assert_allclose(report["mean_ratio"], 1.25, rtol=1e-5)
+    report = json.loads(run("compare", paths["ref"], paths["test"], "--json", "--no-mask-channels").output)
+    assert report["pixels"] == inside.size and report["mask_source"]["kind"] == "nonzero"
+    report = json.loads(run("compare", paths["both"], paths["test"], "--json").output)
+    assert report["pixels"] == ring.sum()  # the reference's own channel first
+    assert report["mask_source"] == {"kind": "channel", "image": str(paths["both"]), "channel": "object"}
+    table = run("compare", paths["ref"], paths["test"])
+    assert table.exit_code == 0, table.output
+    assert f"object pixels: the 'mask' channel of {paths['test']}" in table.output
+    assert f"{inside.sum()} object pixels" in table.output
+
+
+def test_cli_mask_image_overrides_the_channels(floor_pair, tmp_path):
+    paths, inside, _ = floor_pair
+    square = np.zeros(inside.shape + (3,))
+    square[10:20, 10:20] = 1.0
+    write_png(tmp_path / "square.png", square, method="none")
+    report = json.loads(run("compare", paths["ref"], paths["test"], "--json", "--mask", tmp_path / "square.png").output)
+    assert report["pixels"] == 100 and report["mask_source"]["kind"] == "image"
+
+
 def test_cli_help_explains_every_option():
     text = run("compare", "--help").output
-    for option in ("--mask", "--output", "--range", "--block", "--json", "FLIP", "REFERENCE", "TEST"):
+    for option in ("--mask", "--mask-channels", "--no-mask-channels", "--output", "--range", "--block", "--json",
+                   "FLIP", "REFERENCE", "TEST"):
         assert option in text

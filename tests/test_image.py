@@ -2,7 +2,17 @@ import numpy as np
 import pytest
 
 from convsss.errors import ConvsssError
-from convsss.image import read_image, srgb_encode, tonemap, write_exr, write_png
+from convsss.files import atomic_write
+from convsss.image import (
+    exr_writer,
+    mask_png_writer,
+    read_image,
+    read_layers,
+    srgb_encode,
+    tonemap,
+    write_exr,
+    write_png,
+)
 
 
 def test_exr_roundtrip_is_lossless(tmp_path):
@@ -46,6 +56,38 @@ def test_anchor_keys_the_operator():
 def test_exposure_and_encoding():
     np.testing.assert_allclose(tonemap(np.full((1, 1, 3), 0.25), "exposure", exposure=1), 0.5)
     assert srgb_encode(np.array([0.0, 1.0, 0.5])).tolist() == [0, 255, 188]
+
+
+def test_exr_with_aov_channels_reads_back_by_layer(tmp_path):
+    """Named channels (the integrator's AOVs) land in the EXR; read_image gives its R, G, B, read_layers every layer
+    by the name before the dot."""
+    values = np.random.default_rng(1).random((6, 5, 8)).astype(np.float32)
+    names = ["R", "G", "B", "exitance.R", "exitance.G", "exitance.B", "object.I", "sss.mask.Y"]
+    path = atomic_write(tmp_path / "aovs.exr", exr_writer(values, names))
+    np.testing.assert_array_equal(read_image(path), values[..., :3])
+    layers = read_layers(path)
+    assert sorted(layers) == ["", "exitance", "object", "sss.mask"]
+    np.testing.assert_array_equal(layers[""], values[..., :3])
+    np.testing.assert_array_equal(layers["exitance"], values[..., 3:6])
+    np.testing.assert_array_equal(layers["object"][..., 0], values[..., 6])
+    np.testing.assert_array_equal(layers["sss.mask"][..., 0], values[..., 7])
+    plain = write_exr(tmp_path / "plain.exr", values)  # no names: R, G, B only, as before
+    assert list(read_layers(plain)) == [""] and read_image(plain).shape == (6, 5, 3)
+
+
+@pytest.mark.parametrize("names", [["R", "G", "B", "mask.Y"], ["exitance.R", "R", "G", "B", "x.Y"],
+                                   ["R", "G", "B", "a.Y", "a.Y"]])
+def test_exr_channel_names_must_fit(names):
+    with pytest.raises(ConvsssError, match="5 image channels need as many distinct names, R, G, B first"):
+        exr_writer(np.zeros((2, 2, 5)), names)
+
+
+def test_mask_png_reads_back_as_the_coverage(tmp_path):
+    coverage = np.array([[0.0, 0.25, 0.5], [0.75, 1.0, 1.5]])
+    path = atomic_write(tmp_path / "mask.png", mask_png_writer(coverage))
+    back = read_image(path)
+    np.testing.assert_allclose(back[..., 0], np.clip(coverage, 0, 1), atol=0.005)
+    assert back[0, 0, 0] == 0.0 and back[1, 1, 0] == 1.0 and np.all(back[..., 0] == back[..., 2])
 
 
 def test_failed_write_leaves_nothing(tmp_path):

@@ -2,6 +2,8 @@
 
 Both images are linear RGB (H, W, 3). The metrics are taken over the *object pixels* only: a given mask (nonzero =
 object) or, by default, the pixels where the reference is nonzero in some channel (everything but the background).
+An image rendered with the integrator's ``mask`` or ``object`` AOV carries its own mask (:func:`mask_layer`): the
+pixels where that channel is positive, the translucent objects without the floors and walls around them.
 Per channel ``c``, with ``n`` object pixels and the relative floor ``f_c = 0.01 mean(A_c)`` (which keeps the relative
 errors finite where the reference is dark, and scales with the images, so every metric but RMSE and the means is
 unchanged when both images are scaled together):
@@ -32,6 +34,8 @@ from .image import luminance, srgb_encode, tonemap
 
 #: Relative floor: the fraction of the reference's mean below which relative errors stop growing.
 FLOOR = 0.01
+#: The layers of an image (the integrator's AOVs) that mark its object pixels, in order of preference.
+MASK_LAYERS = ("mask", "object")
 METRICS = ("rmse", "relmse", "mean_rel_error", "mean_reference", "mean_test", "max_reference", "max_test",
            "mean_ratio")
 
@@ -53,6 +57,35 @@ def object_mask(reference, mask=None):
     source = reference if mask is None else np.asarray(mask)
     source = np.nan_to_num(np.asarray(source, dtype=np.float64), nan=1.0)
     return np.any(source != 0, axis=-1) if source.ndim == 3 else source != 0
+
+
+def mask_layer(layers):
+    """The object pixels an image marks itself: ``(name, mask)`` of its first ``mask`` or ``object`` layer (also one
+    nested by Mitsuba's ``aov`` integrator, e.g. ``convsss.mask``), or None when it has neither.
+
+    Parameters
+    ----------
+    layers : dict of str to array_like, shape (H, W, C)
+        An image's layers by name (:func:`convsss.image.read_layers`).
+
+    Returns
+    -------
+    tuple of (str, numpy.ndarray of bool, shape (H, W)) or None
+        The layer's name and its pixels whose first channel is positive (covered, at least in part, by a translucent
+        object; NaN counts as 0).
+
+    Examples
+    --------
+    >>> name, mask = mask_layer({"": np.ones((1, 3, 3)), "object": np.array([[[0.0], [0.5], [2.0]]])})
+    >>> name, mask.tolist()
+    ('object', [[False, True, True]])
+    """
+    for wanted in MASK_LAYERS:
+        for name, values in layers.items():
+            if name == wanted or name.endswith("." + wanted):
+                values = np.asarray(values, dtype=np.float64)
+                return name, np.nan_to_num(values[..., 0] if values.ndim == 3 else values) > 0
+    return None
 
 
 def block_average(image, k):

@@ -212,14 +212,18 @@ def display_png_writer(pixels):
     return lambda path: bitmap.write(path, mi.Bitmap.FileFormat.PNG)
 
 
-def exr_writer(rgb):
+def exr_writer(rgb, channels=None):
     """``write(path)``, saving linear RGB (H, W, 3) as a float32 OpenEXR file: one entry of
     :func:`convsss.files.write_files`, which writes several files together.
 
     Parameters
     ----------
     rgb : array_like, shape (H, W, C), C >= 3
-        Linear RGB in any radiometric unit, stored as float32; channels past the third are dropped.
+        Linear RGB in any radiometric unit, stored as float32; without ``channels``, channels past the third are
+        dropped.
+    channels : sequence of str, optional
+        One name per channel of ``rgb`` (``R``, ``G``, ``B`` first), to store every channel: e.g. the integrator's
+        AOVs ``exitance.R``, ``mask.Y`` (Mitsuba's layer.channel names, which EXR viewers show as layers).
 
     Returns
     -------
@@ -229,13 +233,46 @@ def exr_writer(rgb):
     Raises
     ------
     ConvsssError
-        When ``rgb`` is not of shape (H, W, C) with C >= 3.
+        When ``rgb`` is not of shape (H, W, C) with C >= 3, or ``channels`` does not name its channels, RGB first.
     """
     rgb = np.asarray(rgb, dtype=np.float32)
     if rgb.ndim != 3 or rgb.shape[2] < 3:
         raise ConvsssError(f"an RGB image must have shape (H, W, 3), got {rgb.shape}")
-    mi, bitmap = _bitmap(rgb[..., :3])
+    if channels is None or list(channels) == ["R", "G", "B"]:
+        mi, bitmap = _bitmap(rgb[..., :3])
+    else:
+        channels = [str(c) for c in channels]
+        if len(channels) != rgb.shape[2] or channels[:3] != ["R", "G", "B"] or len(set(channels)) != len(channels):
+            raise ConvsssError(f"{rgb.shape[2]} image channels need as many distinct names, R, G, B first; got "
+                               f"{', '.join(channels)}")
+        from .backend import load_mitsuba
+
+        mi = load_mitsuba()
+        bitmap = mi.Bitmap(np.ascontiguousarray(rgb), mi.Bitmap.PixelFormat.MultiChannel, channels)
     return lambda path: bitmap.write(path, mi.Bitmap.FileFormat.OpenEXR)
+
+
+def mask_png_writer(coverage):
+    """``write(path)``, saving a mask (H, W) in [0, 1] (e.g. the ``mask`` AOV: the translucent objects' coverage)
+    as an 8-bit grey PNG, black = 0, white = 1, sRGB-encoded as every PNG (so :func:`read_image` reads the coverage
+    back, to 8 bits): one entry of :func:`convsss.files.write_files`.
+
+    Parameters
+    ----------
+    coverage : array_like, shape (H, W)
+        Values clipped to [0, 1]; NaN counts as 0.
+
+    Returns
+    -------
+    callable
+        ``write(path)``, which saves the PNG at ``path``.
+    """
+    grey = srgb_encode(np.nan_to_num(np.asarray(coverage, dtype=np.float64)))
+    from .backend import load_mitsuba
+
+    mi = load_mitsuba()
+    bitmap = mi.Bitmap(np.ascontiguousarray(grey), mi.Bitmap.PixelFormat.Y)
+    return lambda path: bitmap.write(path, mi.Bitmap.FileFormat.PNG)
 
 
 def png_writer(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None, anchor=None):
@@ -295,13 +332,35 @@ def write_png(path, rgb, method="reinhard", key=0.18, exposure=0.0, mask=None, a
     return atomic_write(path, png_writer(rgb, method, key, exposure, mask, anchor))
 
 
+def _open(path):
+    path = Path(path)
+    if not path.is_file():
+        raise ConvsssError(f"image {str(path)!r} does not exist")
+    from .backend import load_mitsuba
+
+    mi = load_mitsuba()
+    try:
+        return mi, mi.Bitmap(str(path))
+    except Exception as error:
+        raise ConvsssError(f"cannot read image {str(path)!r}: {error}") from None
+
+
+def _linear(mi, bitmap, pixel_format):
+    """``bitmap`` as float64 (H, W, C) in ``pixel_format``, sRGB-decoded if it is encoded; a multi-channel layer (EXR
+    data, linear) as stored."""
+    if pixel_format == mi.Bitmap.PixelFormat.MultiChannel:
+        return np.array(bitmap, dtype=np.float64).reshape(bitmap.height(), bitmap.width(), -1)
+    converted = bitmap.convert(pixel_format, mi.Struct.Type.Float32, srgb_gamma=False)
+    return np.array(converted, dtype=np.float64).reshape(bitmap.height(), bitmap.width(), -1)
+
+
 def read_image(path):
     """Read an EXR (linear) or PNG/JPEG (sRGB-decoded to linear) image as float64 (H, W, 3).
 
     Parameters
     ----------
     path : str or Path
-        An image file Mitsuba's bitmap reader knows.
+        An image file Mitsuba's bitmap reader knows; of an EXR with more channels (AOVs), its R, G, B.
 
     Returns
     -------
@@ -312,15 +371,42 @@ def read_image(path):
     Raises
     ------
     ConvsssError
+        When the file does not exist or cannot be read, or has more channels but no R, G, B.
+    """
+    mi, bitmap = _open(path)
+    if bitmap.pixel_format() == mi.Bitmap.PixelFormat.MultiChannel:
+        layers = dict(bitmap.split())
+        if "<root>" not in layers or layers["<root>"].channel_count() < 3:
+            raise ConvsssError(f"image {str(path)!r} has no R, G, B channels (it has "
+                               f"{', '.join(f.name for f in bitmap.struct_())})")
+        bitmap = layers["<root>"]
+    return _linear(mi, bitmap, mi.Bitmap.PixelFormat.RGB)
+
+
+def read_layers(path):
+    """Every layer of an image, by name: ``""`` for the colour (R, G, B as :func:`read_image` reads them) and, for an
+    EXR with more channels, each ``layer`` of its ``layer.channel`` names (e.g. ``exitance`` of ``exitance.R``).
+
+    Parameters
+    ----------
+    path : str or Path
+        An image file Mitsuba's bitmap reader knows.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray, shape (H, W, C), float64
+        Linear values; the channels of a layer in the file's order (R, G, B for a colour layer).
+
+    Raises
+    ------
+    ConvsssError
         When the file does not exist or cannot be read.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ConvsssError(f"image {str(path)!r} does not exist")
-    mi, _ = _bitmap(np.zeros((1, 1, 3), np.float32))
-    try:
-        bitmap = mi.Bitmap(str(path))
-    except Exception as error:
-        raise ConvsssError(f"cannot read image {str(path)!r}: {error}") from None
-    linear = bitmap.convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
-    return np.array(linear, dtype=np.float64).reshape(bitmap.height(), bitmap.width(), 3)
+    mi, bitmap = _open(path)
+    if bitmap.pixel_format() != mi.Bitmap.PixelFormat.MultiChannel:
+        return {"": read_image(path)}
+    out = {}
+    for name, layer in bitmap.split():
+        name = "" if name == "<root>" else name
+        out[name] = _linear(mi, layer, layer.pixel_format())
+    return out

@@ -91,6 +91,54 @@ class IrradianceSamples:
         return self.irradiance * self.area[:, None]
 
 
+class LocalIrradiance:
+    """The irradiance of a set of samples read at any point of their surface: the area-weighted mean ``E`` of the
+    ``neighbours`` nearest samples whose normal is within ``max_angle`` of the point's (the nearest sample alone
+    when none is), the irradiance the transports spread there (paper Eq. 2, times ``F_t``), smoothed over about
+    ``neighbours / sample_density`` layer cells.
+
+    Parameters
+    ----------
+    samples : IrradianceSamples
+        Positions in mm; without normals, every neighbour counts.
+    neighbours : int
+        Samples averaged per point.
+    max_angle : float
+        Degrees between a point's normal and a sample's beyond which the sample is on another side (a thin part's
+        back, an edge's other face).
+
+    Examples
+    --------
+    >>> s = IrradianceSamples(np.c_[np.arange(4.0), np.zeros((4, 2))], 1.0, np.arange(4.0))
+    >>> LocalIrradiance(s, neighbours=2)(np.array([[0.4, 0.0, 0.0]]))[0]
+    array([0.5, 0.5, 0.5])
+    """
+
+    def __init__(self, samples, neighbours=8, max_angle=60.0):
+        from scipy.spatial import cKDTree
+
+        self.samples = samples
+        self.neighbours = max(1, min(int(neighbours), len(samples)))
+        self.cos_limit = float(np.cos(np.radians(max_angle)))
+        self._tree = cKDTree(samples.position)
+
+    def __call__(self, points, normals=None):
+        """``E`` (K, 3) at ``points`` (K, 3) mm, with their outward unit ``normals`` (K, 3) if known."""
+        points = as_points(points)
+        if len(points) == 0:
+            return np.zeros((0, 3))
+        _, index = self._tree.query(points, k=self.neighbours, workers=-1)
+        index = index.reshape(len(points), -1)
+        weight = self.samples.area[index]
+        if normals is not None and self.samples.normal is not None:
+            normals = as_points(normals, "normals")
+            facing = sum(normals[:, c, None] * self.samples.normal[index, c] for c in range(3))
+            weight = np.where(facing >= self.cos_limit, weight, 0.0)
+            weight[weight.sum(axis=1) == 0, 0] = 1.0  # none on this side: the nearest sample
+        weight /= weight.sum(axis=1, keepdims=True)
+        return np.stack([(weight * self.samples.irradiance[index, c]).sum(axis=1) for c in range(3)], axis=1)
+
+
 @dataclass(frozen=True, eq=False)
 class ViewFrame:
     """An orthonormal camera frame: ``origin`` and the axes ``right`` (x), ``up`` (y), ``forward`` (z, depth)."""

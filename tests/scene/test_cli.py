@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -13,7 +14,7 @@ import pytest
 from click.testing import CliRunner
 
 from convsss.cli import cli
-from convsss.image import read_image
+from convsss.image import read_image, read_layers
 
 
 def run(*args):
@@ -44,7 +45,8 @@ def test_help_explains_every_option():
         assert "--output" in result.output or command == "scene"
     text = run("render", "--help").output
     for option in ("--layers", "--threshold", "--downsample", "--spp", "--transport", "--width", "--height",
-                   "--stats", "--tonemap", "--exposure", "--mesh", "--material", "--size-mm", "--floor"):
+                   "--stats", "--tonemap", "--exposure", "--mesh", "--material", "--size-mm", "--floor", "--aovs",
+                   "--mask", "exitance", "irradiance"):
         assert option in text
 
 
@@ -81,6 +83,54 @@ def test_quick_render_of_a_mesh(tmp_path):
                  "--height", 24, "--spp", 1, "-o", out, "--no-progress", "--tonemap", "exposure")
     assert result.exit_code == 0, result.output
     assert read_image(out.with_suffix(".exr")).shape == (24, 32, 3)
+
+
+def test_aovs_and_mask_land_in_the_exr_and_a_png_and_compare_uses_them(tmp_path):
+    """--aovs: channels of OUT.exr; --mask: the mask AOV too, and OUT-mask.png; compare then takes the bunny's
+    pixels, not the lit floor's."""
+    out, stats = tmp_path / "bunny", tmp_path / "bunny.json"
+    result = run("render", "--mesh", "bunny", "--material", "skin1", "--size-mm", 30, "--floor", "--width", 32,
+                 "--height", 24, "--spp", 2, "-o", out, "--no-progress", "--aovs", "exitance,object", "--mask",
+                 "--stats", stats)
+    assert result.exit_code == 0, result.output
+    mask_png = tmp_path / "bunny-mask.png"
+    assert str(mask_png) in result.output
+    layers = read_layers(out.with_suffix(".exr"))
+    assert sorted(layers) == ["", "exitance", "mask", "object"]
+    assert layers[""].shape == (24, 32, 3) and layers["exitance"].shape == (24, 32, 3)
+    mask = layers["mask"][..., 0]
+    np.testing.assert_array_equal(layers["object"][..., 0] > 0, mask > 0)  # one object: index 1
+    np.testing.assert_allclose(read_image(mask_png)[..., 0], mask, atol=0.005)
+    lit = np.any(layers[""] > 0, axis=-1)
+    assert 20 < np.count_nonzero(mask) < 0.5 * np.count_nonzero(lit)
+    data = json.loads(stats.read_text())
+    assert data["aovs"] == ["exitance.R", "exitance.G", "exitance.B", "object.I", "mask.Y"]
+    assert data["outputs"]["mask"] == str(mask_png) and data["parameters"]["aovs"] == "exitance,object,mask"
+    result = run("compare", out.with_suffix(".exr"), out.with_suffix(".exr"), "--json")
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.output)
+    assert report["pixels"] == np.count_nonzero(mask) and report["mask_source"]["channel"] == "mask"
+
+
+def test_mask_keeps_the_scenes_own_aovs(studio):
+    text = re.sub(r'<integrator type="volpathmis">.*?</integrator>', '<integrator type="convsss"><string '
+                  'name="aovs" value="depth"/></integrator>', (studio / "studio.xml").read_text(), flags=re.DOTALL)
+    (studio / "aovs.xml").write_text(text)
+    result = run("render", "aovs.xml", "-o", "out", "--mask", "--no-progress", "--irradiance-samples", 2)
+    assert result.exit_code == 0, result.output
+    assert sorted(read_layers(studio / "out.exr")) == ["", "depth", "mask"]
+    assert (studio / "out-mask.png").is_file()
+
+
+@pytest.mark.parametrize("aovs, message", [
+    ("albedo", "aovs='albedo' is not allowed: 'albedo' is not an AOV of convsss; choose from exitance, irradiance, "
+               "object, mask, depth, normal"),
+    ("depth,depth", "aovs='depth,depth' is not allowed: 'depth' is named twice"),
+])
+def test_bad_aovs_fail_in_one_line(studio, aovs, message):
+    before = _snapshot(studio)
+    _assert_refused(run("render", "studio.xml", "-o", "out", "--aovs", aovs, "--mask", "--no-progress"), message,
+                    studio, before)
 
 
 def test_reference_saves_every_pass(scene_file, tmp_path):
@@ -315,13 +365,15 @@ def test_outputs_never_overwrite_inputs(studio, args):
     (("render", "-o", "studio.xml/img"), "not a folder"),
     (("render", "-o", "out", "--stats", "/proc/x/stats.json"), "cannot write into '/proc/x'"),
     (("render", "-o", "out", "--stats", "out.exr"), "named twice"),
+    (("render", "-o", "out", "--mask", "--stats", "out-mask.png"), "named twice"),
+    (("render", "-o", "taken", "--mask"), "'taken-mask.png' is a folder"),
     (("render", "-o", "taken"), "'taken.png' is a folder"),
     (("reference", "-o", "/proc/x/img"), "cannot write into '/proc/x'"),
     (("reference", "-o", "studio.xml/img"), "not a folder"),
     (("reference", "-o", "taken"), "'taken.png' is a folder"),
 ])
 def test_unwritable_outputs_fail_before_the_render(studio, args, message):
-    (studio / "taken.png").mkdir()
+    (studio / ("taken-mask.png" if "--mask" in args else "taken.png")).mkdir()
     before = _snapshot(studio)
     _assert_refused(run(args[0], "studio.xml", *args[1:], "--no-progress"), message, studio, before)
 

@@ -278,3 +278,17 @@ def test_open_disk_and_non_reflecting_channel_render_without_stray_warnings(mi, 
             image = np.array(scene.integrator().render(scene, scene.sensors()[0]))
         assert [w.category for w in caught] == [expected], [str(w.message) for w in caught]
         assert np.all(np.isfinite(image)) and image.min() >= 0
+
+
+def test_scene_parameters_are_those_of_the_scenes_own_convsss_integrator(mi, sphere_scene):
+    """What `convsss render` and `convsss edit` start from. Mitsuba names a Python plugin's class
+    ``SamplingIntegrator``, so the integrator is recognized by its type, not by ``class_name()``."""
+    from convsss.scene.integrator import scene_parameters
+
+    scene = mi.load_dict(sphere_scene(integrator={"transport": "convolution", "layers": 4, "aovs": "mask"}))
+    assert scene.integrator().class_name() == "SamplingIntegrator"
+    params = scene_parameters(scene)
+    assert (params["transport"], params["layers"], params["aovs"]) == ("convolution", 4, "mask")
+    other = sphere_scene()
+    other["integrator"] = {"type": "volpathmis"}
+    assert scene_parameters(mi.load_dict(other)) is None

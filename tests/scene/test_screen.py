@@ -70,7 +70,7 @@ def _lookup_against_transport(mi, scene):
     u = rng.uniform(0, 1, (2, 20000)).astype(np.float32)
     ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(mi.Float(u[0]), mi.Float(u[1])), mi.Point2f(0.5, 0.5))
     si = scene.ray_intersect(ray)
-    which, _ = shader._classify(si)
+    which, _ = shader.classify(si)
     exitance, known = screen.lookup(si, which)
     known, hits = known.numpy(), (which.numpy() >= 0).sum()
     points = si.p.numpy().T[known].astype(np.float64)

@@ -40,12 +40,12 @@ def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, f
     from ..backend import load_mitsuba
     from ..editor import EditSession
     from ..editor.server import EditorServer
+    from ..scene.integrator import scene_parameters
 
     load_mitsuba()
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width or 256, height or 256, color,
                         mfp_mm, eta, color_model)
-    named = scene.integrator()
-    base = named.params.to_dict() if named is not None and named.class_name() == "ConvsssIntegrator" else defaults
+    base = scene_parameters(scene) or defaults
     click.echo("rendering the first preview...", err=True)
     session = EditSession(scene, render_params(integrator, base), target=target, spp=spp or 1, seed=seed)
     server = EditorServer(session, "127.0.0.1", port)

@@ -1,8 +1,10 @@
 """``convsss render``: a Mitsuba scene (or a mesh and a material) rendered with the ``convsss`` integrator.
 
-Writes ``OUT.exr`` (linear) and ``OUT.png`` (tone-mapped), and with ``--stats`` a JSON file of parameters, per-stage
-seconds, grid/FFT shapes and the object's size in mean free paths. The files are written together or not at all,
-and never over an input of the render (the scene and every file it names, the mesh, the profile).
+Writes ``OUT.exr`` (linear; with ``--aovs``, the integrator's AOV channels beside R, G, B), ``OUT.png``
+(tone-mapped), with ``--mask`` ``OUT-mask.png`` (the translucent objects' coverage), and with ``--stats`` a JSON file of
+parameters, per-stage seconds, grid/FFT shapes and the object's size in mean free paths. The files are written
+together or not at all, and never over an input of the render (the scene and every file it names, the mesh, the
+profile).
 """
 
 import json
@@ -58,7 +60,11 @@ class StageProgress:
 @cli.command()
 @scene_source_options
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="Output stem: writes OUT.exr (linear) and OUT.png (tone-mapped).")
+              help="Output stem: writes OUT.exr (linear, with the --aovs channels) and OUT.png (tone-mapped).")
+@click.option("--mask", "write_mask", is_flag=True,
+              help="Also write OUT-mask.png, the translucent objects' mask: white where a camera ray first hits one, "
+                   "grey where it covers part of the pixel (the mask AOV, also added to OUT.exr, where `convsss "
+                   "compare` finds it).")
 @integrator_options
 @tonemap_options
 @click.option("--stats", "stats_path", type=click.Path(dir_okay=False),
@@ -66,7 +72,7 @@ class StageProgress:
                    "count, and the object's size in mean free paths and diffusion lengths.")
 @PROGRESS
 def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height, spp,
-           seed, output, tonemap, key, exposure, exposure_from, stats_path, progress, **integrator):
+           seed, output, write_mask, tonemap, key, exposure, exposure_from, stats_path, progress, **integrator):
     """Render SCENE_FILE (a Mitsuba 3 XML scene) with the convsss integrator, whatever integrator the file names.
 
     A translucent object is a shape with an interior 'homogeneous' medium (or a 'convsss_medium' naming a preset
@@ -75,11 +81,15 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
     --mesh/--material/--size-mm build a scene around the mesh (with --specular phong, the paper's highlight, unless
     given); --color/--mfp-mm give the material by its colour and mean free path instead of a preset.
 
+    AOVs (--aovs exitance,irradiance,object,mask,depth,normal) are extra channels of OUT.exr, named as Mitsuba's
+    aov integrator names them (exitance.R, object.I, ...), each taken at the camera ray's first hit.
+
     \b
     Examples:
       convsss render scene.xml -o out/scene --spp 16 --stats out/scene.json
       convsss render --mesh bunny --material wholemilk --size-mm 40 --floor -o out/bunny
       convsss render --mesh bunny --color 0.8,0.5,0.4 --mfp-mm 2 --size-mm 40 -o out/colour
+      convsss render scene.xml -o out/scene --aovs exitance,object --mask
     """
     if spp is not None and spp < 1:
         raise ConvsssError(f"spp={spp} is not allowed: it must be >= 1")
@@ -95,11 +105,13 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         TabulatedProfile.from_csv(csv)
     stem = output_stem(output)
     exr, png = stem.with_suffix(".exr"), stem.with_suffix(".png")
-    check_outputs([exr, png, *([stats_path] if stats_path else [])],
+    mask_png = stem.with_name(stem.name + "-mask.png") if write_mask else None
+    check_outputs([exr, png, *([mask_png] if write_mask else []), *([stats_path] if stats_path else [])],
                   [*source_inputs(scene_file, mesh), *profiles, *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
 
     from ..backend import load_mitsuba
+    from ..scene.integrator import scene_parameters
 
     mi = load_mitsuba()
     seconds = {}
@@ -109,28 +121,32 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         t = time.perf_counter()
         scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
                             color_model)
-        base = dict(defaults)
-        named = scene.integrator()
-        if named is not None and named.class_name() == "ConvsssIntegrator":
-            base = named.params.to_dict()
+        base = scene_parameters(scene) or dict(defaults)
         params = render_params(integrator, base)
         if color is not None:
             warn_color_model(color_model, params.profile)
+        if write_mask:  # the AOVs asked for (on the command line, else in the scene) and the mask
+            params = render_params({**integrator, "aovs": _with_mask(params.aovs)}, base)
         seconds["scene_load"] = time.perf_counter() - t
         integ = mi.load_dict(params.integrator_dict())
         integ.progress = bar
         spp_used = spp if spp is not None else (16 if quick else scene.sensors()[0].sampler().sample_count())
-        image = np.array(integ.render(scene, scene.sensors()[0], seed=seed, spp=spp_used), dtype=np.float64)[..., :3]
+        film = np.array(integ.render(scene, scene.sensors()[0], seed=seed, spp=spp_used), dtype=np.float64)
+        aovs = integ.aov_names()
+        image = np.concatenate([film[..., :3], film[..., film.shape[2] - len(aovs):]], axis=2)  # RGB(A) + AOVs
+        channels = ["R", "G", "B", *aovs]
         seconds.update(integ.stats["seconds"])
         bar("write")
         t = time.perf_counter()
-        from ..image import exr_writer, png_writer
+        from ..image import exr_writer, mask_png_writer, png_writer
 
         stats = {"command": "render", "scene": str(scene_file) if scene_file else None,
                  "quick": {"mesh": str(mesh), "material": material, "color": color, "mfp_mm": mfp_mm, "eta": eta,
                            "color_model": color_model, "size_mm": size_mm, "floor": floor,
                            "boundary": boundary} if quick else None,
-                 "seed": seed, "spp": spp_used, "outputs": {"exr": str(exr), "png": str(png)},
+                 "seed": seed, "spp": spp_used,
+                 "outputs": {"exr": str(exr), "png": str(png), "mask": None if mask_png is None else str(mask_png)},
+                 "aovs": aovs,
                  "tonemap": {"method": tonemap, "key": key, "exposure": exposure, "exposure_from": exposure_from},
                  **integ.stats, "seconds": seconds}
 
@@ -141,7 +157,9 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
             if tmp is not None:
                 Path(tmp).write_text(json.dumps(json_ready(stats), indent=1))
 
-        writers = {exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure, anchor=anchor)}
+        writers = {exr: exr_writer(image, channels), png: png_writer(image, tonemap, key, exposure, anchor=anchor)}
+        if write_mask:
+            writers[mask_png] = mask_png_writer(image[..., channels.index("mask.Y")])
         if stats_path:
             writers[stats_path] = finish
         write_files(writers)
@@ -150,4 +168,13 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         bar.close(failed=True)
         raise
     bar.close()
-    click.echo(f"wrote {exr} and {png} ({seconds['total']:.1f} s)")
+    written = f"{exr}, {png} and {mask_png}" if write_mask else f"{exr} and {png}"
+    click.echo(f"wrote {written} ({seconds['total']:.1f} s)")
+
+
+def _with_mask(aovs):
+    """The ``aovs`` parameter with ``mask`` added (for ``--mask``) unless it names it already."""
+    from ..scene.params import parse_aovs
+
+    names = parse_aovs(aovs)
+    return ",".join(names if "mask" in names else (*names, "mask"))

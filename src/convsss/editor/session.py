@@ -82,16 +82,14 @@ class EditSession:
     """
 
     def __init__(self, scene, params=None, target=None, spp=None, seed=0):
-        from ..scene.integrator import register
+        from ..scene.integrator import register, scene_parameters
         from ..scene.params import RenderParams
 
         self.mi = register()
         self.scene, self.sensor, self.seed = scene, scene.sensors()[0], int(seed)
         self.spp = int(spp) if spp else int(self.sensor.sampler().sample_count())
         if params is None:
-            named = scene.integrator()
-            params = RenderParams(**(named.params.to_dict() if named is not None
-                                     and named.class_name() == "ConvsssIntegrator" else {}))
+            params = RenderParams(**(scene_parameters(scene) or {}))
         self.integrator = self.mi.load_dict(params.integrator_dict())
         self.lock = threading.Lock()
         self.version = 0

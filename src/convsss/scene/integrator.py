@@ -28,10 +28,11 @@ from ..memory import check_memory
 from ..samples import IrradianceSamples
 from ..timing import StageTimer
 from ..transport import make_transport
+from .aovs import FirstHitAOVs
 from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
 from .irradiance import indirect_irradiance, object_samples, sample_count
 from .objects import find_translucent_objects
-from .params import RenderParams, plugin_parameters
+from .params import RenderParams, aov_channels, parse_aovs, plugin_parameters
 from .presets import register_medium
 from .screen import ScreenExitance
 from .shading import Shader
@@ -49,6 +50,9 @@ class VisibilityWarning(UserWarning):
 #: samples): the peak resident memory grew by 58 and 89 bytes a path over the prepared state's at 800² 16 and 64 spp
 #: on the demo; with a margin.
 BYTES_PER_PATH = 120
+#: More bytes per path and AOV channel (:mod:`.aovs`): the peak grew by 25, 59 and 130 bytes a path over the prepared
+#: state's with none, 6 (object, mask, depth, normal) and all 12 channels at 512² 16 spp on the demo; with a margin.
+BYTES_PER_AOV_CHANNEL = 12
 #: Bytes per surface sample held while the transport is built (about 325 measured; irradiance runs in chunks).
 BYTES_PER_SAMPLE = 400
 #: Irradiance rays traced per second on the project's 2-core machine (bunny under a constant environment).
@@ -96,10 +100,23 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
 
     {table}
 
-    After a render, :attr:`stats` holds per-stage seconds, the objects (size in mean free paths, samples, flux) and
-    each transport's statistics; :meth:`prepare` builds the samples and transports without shading, and a
-    convolution transport's :meth:`~convsss.transport.convolution.ConvolutionTransport.layer_image` shows one
-    layer's exitance.
+    **AOVs.** ``aovs`` (e.g. ``"exitance,irradiance,object,mask,depth,normal"``) adds channels to the film through
+    Mitsuba's AOV mechanism (:meth:`aov_names`, the list :meth:`sample` returns), ``<aov>.<channel>`` as Mitsuba's
+    ``aov`` integrator names them, each at the camera ray's first hit (:mod:`convsss.scene.aovs`): ``exitance``
+    (``.R/.G/.B``) the transport's ``M`` on a translucent object, whose subsurface radiance is ``(1/pi) F_t M``
+    (paper Eq. 7); ``irradiance`` (``.R/.G/.B``) the ``E`` its samples carry there (Eq. 2); ``object`` (``.I``) the
+    translucent object's index + 1 (0: none); ``mask`` (``.Y``) 1 on a translucent object (a pixel's coverage);
+    ``depth`` (``.T``) and ``normal`` (``.X/.Y/.Z``) as Mitsuba's ``depth`` and ``sh_normal``. They follow R, G, B
+    (and A) in the rendered tensor, work under Mitsuba's ``aov`` integrator too, and leave the radiance unchanged.
+
+    **Stats and stages.** After a render, :attr:`stats` holds ``seconds`` per stage (``samples``, ``irradiance``,
+    ``indirect``, ``transport``, ``screen``, ``shading``), ``parameters``, ``objects`` (per object: material, sample
+    count, cell size, flux direct / indirect / from translucent objects, size in mean free paths), ``transports``
+    (each transport's own statistics), ``samples``, ``hidden``, ``film``, ``screen_exitance``, ``exitance_lookups``
+    and ``translucent_passes``. :meth:`prepare` runs stages 1-3 alone (objects, samples, transports; kept in
+    :attr:`prepared`, a :class:`PreparedState`), :meth:`render_prepared` shades them, :meth:`retransport` rebuilds the
+    transports; a convolution transport's :meth:`~convsss.transport.convolution.ConvolutionTransport.layer_image`
+    shows one layer's exitance ``M_l``.
     """
 
     def __init__(self, props):
@@ -110,6 +127,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         #: Optional callable ``progress(stage)`` told when a stage starts (the command line's progress display).
         self.progress = None
         self._shader = None
+        self._aovs = None
         self._nested = False
         self._threads = 1
         #: The :class:`PreparedState` of the last :meth:`prepare` (kept until :meth:`render` is done with it).
@@ -119,7 +137,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         return f"ConvsssIntegrator[{', '.join(f'{k}={v!r}' for k, v in self.params.to_dict().items())}]"
 
     def aov_names(self):
-        return []
+        """The film channels of the ``aovs`` parameter (e.g. ``exitance.R``), Mitsuba's AOV mechanism (:mod:`.aovs`)."""
+        return aov_channels(parse_aovs(self.params.aovs))
 
     # --- stages -----------------------------------------------------------------------------------------------------
     def _stage(self, name):
@@ -190,6 +209,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         with stage("screen"):
             screen = ScreenExitance(sensor, shown, shown_at, transports, p.unit_mm)
         self._shader = Shader(scene, shown, transports, p, stop=self.should_stop, screen=screen)
+        self._aovs = FirstHitAOVs(self._shader, parse_aovs(p.aovs))
         self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object, "hidden": hidden,
                       "samples": int(sum(o["samples"] for o in per_object)), "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
@@ -301,6 +321,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         with stage("screen"):
             screen = ScreenExitance(state.sensor, objects, state.visible, transports, p.unit_mm)
         self._shader = Shader(state.scene, objects, transports, p, stop=self.should_stop, screen=screen)
+        self._aovs = FirstHitAOVs(self._shader, parse_aovs(p.aovs))
         state.objects, state.transports = objects, transports
         for summary, obj in zip(self.stats.get("objects", []), objects):
             summary.update(obj.summary())
@@ -312,7 +333,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         """A one-line error when ``params`` would place or light the samples differently from the prepared ones."""
         from .params import render_parameters
 
-        kept = [q.name for q in render_parameters() if q.name not in ("transport", "profile")]
+        kept = [q.name for q in render_parameters() if q.name not in ("transport", "profile", "aovs")]
         changed = [n for n in kept if getattr(params, n) != getattr(self.params, n)]
         if params.transport_params().get("downsample", 1.0) != self.params.transport_params().get("downsample", 1.0):
             changed.append("downsample")
@@ -353,7 +374,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         size = film.crop_size()
         spp_used = spp if spp else sensor.sampler().sample_count()
         per_pass = min(spp_used, self.samples_per_pass) if self.samples_per_pass > 0 else spp_used
-        check_memory(int(size[0]) * int(size[1]) * per_pass * BYTES_PER_PATH,
+        per_path = BYTES_PER_PATH + BYTES_PER_AOV_CHANNEL * len(self.aov_names())
+        check_memory(int(size[0]) * int(size[1]) * per_pass * per_path,
                      f"{size[0]}x{size[1]} pixels at {per_pass} samples per pass",
                      "set the integrator's samples_per_pass (e.g. 4) or render fewer spp")
         self.prepare(scene, sensor, seed)
@@ -404,13 +426,21 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         if self._nested:  # all threads for the shading, then one again for Mitsuba's film kernel (see render)
             dr.set_thread_count(self._threads)
         radiance, valid = self._shader.shade(sampler, ray)
+        aovs = self._aovs(ray)
         if self._nested:
-            dr.eval(radiance, valid)
+            dr.eval(radiance, valid, aovs)
             dr.set_thread_count(1)
-        return radiance, valid, []
+        return radiance, valid, aovs
 
 
 ConvsssIntegrator.__doc__ = ConvsssIntegrator.__doc__.replace("{table}", plugin_parameters().replace("\n", "\n    "))
+
+
+def scene_parameters(scene):
+    """The parameters (a dict) of the ``convsss`` integrator a loaded scene names, or None when it names another or
+    none. (Mitsuba reports a Python plugin's ``class_name()`` as ``SamplingIntegrator``: ask the object's type.)"""
+    named = scene.integrator()
+    return named.params.to_dict() if isinstance(named, ConvsssIntegrator) else None
 
 
 def register():

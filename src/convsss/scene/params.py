@@ -12,6 +12,41 @@ from ..profiles.models import DEFAULT_PROFILE, parse_profile_spec
 
 SPECULARS = ("bsdf", "phong", "none")
 
+#: The integrator's AOVs (``aovs``) and their film channels, ``<name>.<channel>`` (Mitsuba's ``aov`` convention), all
+#: taken at the camera ray's first hit: the transport's exitance ``M`` (paper Eq. 7) and the irradiance ``E`` (Eq. 2)
+#: there on a translucent object (0 elsewhere), the translucent object's index + 1 (0: none), a mask (1 on a
+#: translucent object, 0 elsewhere; its pixel average is the coverage), and Mitsuba's ``depth`` and ``sh_normal``.
+AOVS = {"exitance": ("R", "G", "B"), "irradiance": ("R", "G", "B"), "object": ("I",), "mask": ("Y",),
+        "depth": ("T",), "normal": ("X", "Y", "Z")}
+
+
+def parse_aovs(text):
+    """The AOV names of the ``aovs`` parameter (comma-separated, in their order), each checked; one-line errors.
+
+    Examples
+    --------
+    >>> parse_aovs("exitance, object")
+    ('exitance', 'object')
+    >>> parse_aovs("albedo")
+    Traceback (most recent call last):
+    ...
+    convsss.errors.ConvsssError: aovs='albedo' is not allowed: 'albedo' is not an AOV of convsss; choose from \
+exitance, irradiance, object, mask, depth, normal
+    """
+    names = tuple(n.strip() for n in str(text).split(",") if n.strip())
+    for k, name in enumerate(names):
+        if name not in AOVS:
+            raise ConvsssError(f"aovs={text!r} is not allowed: {name!r} is not an AOV of convsss; choose from "
+                               f"{', '.join(AOVS)}")
+        if name in names[:k]:
+            raise ConvsssError(f"aovs={text!r} is not allowed: {name!r} is named twice")
+    return names
+
+
+def aov_channels(names):
+    """The film channels of the AOVs ``names`` (from :func:`parse_aovs`), e.g. ``exitance.R``, in order."""
+    return [f"{name}.{channel}" for name in names for channel in AOVS[name]]
+
 
 def available_transports():
     """Names accepted by ``transport``: whatever :mod:`convsss.transport` registers."""
@@ -50,6 +85,11 @@ def render_parameters():
                   "Habel et al. 2013; burley: Christensen & Burley 2015) or a CSV file r_mm, R, G, B, for every "
                   "object, or per object by shape id: 'bunny=pbd,dragon=skin.csv' (an entry without 'name=' sets "
                   f"the others). Empty: {DEFAULT_PROFILE}."),
+        Parameter("aovs", str, "", "Extra film channels (AOVs) at each camera ray's first hit, comma-separated: "
+                  "exitance (the transport's M, RGB, on translucent objects), irradiance (the E its samples carry "
+                  "there, RGB), object (the translucent object's index + 1, 0: none), mask (1 on a translucent "
+                  "object; per pixel: its coverage), depth (hit distance, as Mitsuba's aov), normal (shading "
+                  "normal). Empty: none."),
     )
 
 
@@ -106,6 +146,7 @@ class RenderParams:
         if self._renderer["max_depth"] == 0:
             raise ConvsssError("max_depth=0 is not allowed: it must be -1 (unbounded) or >= 1")
         parse_profile_spec(self._renderer["profile"])
+        parse_aovs(self._renderer["aovs"])
         own = {p.name: p for p in self.transport_class().parameters if p.exposed}
         self._options = {k: (own.get(k) or declared[k]).check(v) for k, v in values.items() if k in declared}
 

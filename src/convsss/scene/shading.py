@@ -83,12 +83,15 @@ class Shader:
         self.lookups = 0
         #: Hits on objects without a transport: ``(object, tag, points_mm, normals, weight)`` per batch.
         self.deferred = []
+        #: The last batch of camera rays and their first hits whose ``M`` came from a transport: ``(rays, lanes,
+        #: M (K, 3))``, numpy but the rays (the ``exitance`` AOV reads them instead of asking again, :mod:`.aovs`).
+        self.first_recorded = (None, np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
         self._tags = self._weight = None
         #: Up to this many emitters, direct light samples each of them (else one chosen by the scene).
         self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
 
     # --- per-bounce pieces ----------------------------------------------------------------------------------------
-    def _classify(self, si):
+    def classify(self, si):
         """Per lane: the index of the translucent object hit (mi.Int32, -1: none) and its eta (mi.Float).
 
         An object is the pair (instance, shape): an instanced shape is shared by every instance of its shapegroup,
@@ -115,6 +118,10 @@ class Shader:
             tags.append(tag)
             values.append(weight * self._exitance(transports[k], points, normals))
         return np.concatenate(tags), np.concatenate(values)
+
+    def exitance(self, k, points, normals):
+        """Object ``k``'s ``M`` (K, 3) at ``points`` (mm) with outward ``normals``, from its transport (numpy)."""
+        return self._exitance(self.transports[k], points, normals)
 
     def _exitance(self, transport, points, normals):
         """``transport``'s ``M`` at ``points`` (mm; (K, 3) numpy), asked in chunks of its ``query_batch``; chunks
@@ -220,21 +227,23 @@ class Shader:
             if count <= room:
                 break
             sampler, room = replay, count
-        self._recorded(total, records, count)
+        first = self._recorded(total, records, count)
+        if first_depth == 0:
+            self.first_recorded = (ray, *first)
         dr.eval(total, valid)
         return total, valid
 
     @dr.syntax
     def _paths(self, sampler, ray, first_depth, room):
         """The path tracer's loop: ``(radiance, first hit's mask, records, count)``, ``records`` the (object, point,
-        normal, weight ``beta (1/pi) F_t``, lane) of the first ``room`` of the ``count`` hits on translucent objects
-        whose ``M`` is not in the screen table (paper Eq. 7 without ``M``)."""
+        normal, weight ``beta (1/pi) F_t``, lane, whether it is a camera ray's first hit) of the first ``room`` of the
+        ``count`` hits on translucent objects whose ``M`` is not in the screen table (paper Eq. 7 without ``M``)."""
         scene, params = self.scene, self.params
         n_lanes = dr.width(ray.o)
         max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         count = dr.zeros(mi.UInt32, 1)
         records = (dr.zeros(mi.Int32, room), dr.zeros(mi.Point3f, room), dr.zeros(mi.Vector3f, room),
-                   dr.zeros(mi.Color3f, room), dr.zeros(mi.UInt32, room))
+                   dr.zeros(mi.Color3f, room), dr.zeros(mi.UInt32, room), dr.zeros(mi.Bool, room))
         lane = dr.arange(mi.UInt32, n_lanes)
         ray = mi.Ray3f(ray)
         total = dr.zeros(mi.Color3f, n_lanes)
@@ -254,7 +263,7 @@ class Shader:
             contribution = dr.select(seen, self._emission(si, prev_p, prev_n, prev_pdf, prev_delta) * throughput,
                                      0.0)
             alive = active & si.is_valid() & (depth + 1 < max_depth)
-            which, eta = self._classify(si)
+            which, eta = self.classify(si)
             translucent = alive & (which >= 0)
             # Paper Eq. 7: (1/pi) F_t(eta, w_o) M(x_o) on translucent objects.
             weight = throughput * (1.0 - mi.fresnel(dr.abs(si.wi.z), eta)[0]) / dr.pi
@@ -263,7 +272,8 @@ class Shader:
             asked = translucent & ~known
             slot = dr.scatter_inc(count, mi.UInt32(0), asked)
             kept = asked & (slot < room)
-            for record, value in zip(records, (which, si.p, mi.Vector3f(si.n), weight, lane)):
+            first = depth == 0
+            for record, value in zip(records, (which, si.p, mi.Vector3f(si.n), weight, lane, first)):
                 dr.scatter(record, value, slot, kept)
 
             bsdf = si.bsdf(ray)
@@ -319,16 +329,17 @@ class Shader:
     def _recorded(self, total, records, count):
         """Adds to ``total`` the recorded hits' ``weight M`` from each object's transport (numpy, positions in mm,
         outward normals for the transports that use them); hits on an object without a transport go to
-        :attr:`deferred` with their lane's tag and weight (:meth:`incident`)."""
+        :attr:`deferred` with their lane's tag and weight (:meth:`incident`). Returns the lanes and ``M`` (numpy) of
+        the hits that were the first of a camera ray."""
         if count == 0:
-            return
-        owner, points, normals, beta, lanes = (dr.ravel(r).numpy() if i in (1, 2, 3) else r.numpy()
-                                               for i, r in enumerate(records))
-        owner, lanes = owner[:count], lanes[:count]
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
+        owner, points, normals, beta, lanes, first = (dr.ravel(r).numpy() if i in (1, 2, 3) else r.numpy()
+                                                      for i, r in enumerate(records))
+        owner, lanes, first = owner[:count], lanes[:count], first[:count]
         points = points.reshape(-1, 3)[:count].astype(np.float64) * self.params.unit_mm
         normals = normals.reshape(-1, 3)[:count].astype(np.float64)
         beta = beta.reshape(-1, 3)[:count].astype(np.float64)
-        value = np.zeros((count, 3))
+        exitance = np.zeros((count, 3))
         for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
             mine = np.flatnonzero(owner == k)
             if len(mine) == 0:
@@ -338,8 +349,9 @@ class Shader:
                 self.deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation,
                                       beta[mine] * self._weight[tag]))
                 continue
-            value[mine] = beta[mine] * self._exitance(transport, points[mine], normals[mine] * obj.orientation)
-        dr.scatter_add(total, _color(value), mi.UInt32(lanes.astype(np.uint32)))
+            exitance[mine] = self._exitance(transport, points[mine], normals[mine] * obj.orientation)
+        dr.scatter_add(total, _color(beta * exitance), mi.UInt32(lanes.astype(np.uint32)))
+        return lanes[first].astype(np.int64), exitance[first]
 
     def _emission(self, si, prev_p, prev_n, prev_pdf, prev_delta):
         """Emitted radiance seen at ``si``, MIS-weighted against emitter sampling after a non-delta BSDF sample (a
