@@ -14,8 +14,8 @@
 # (`tests/test_examples.py`). Images and plots go to `$CONVSSS_EXAMPLE_OUT` (default `out/notebook`).
 #
 # It registers the integrator, builds a scene dictionary with a translucent object (a material preset named in
-# the scene, `convsss_medium`), an opaque floor, an area light and an environment map, renders it, changes the
-# material in a loop reusing everything the material does not change, and plots the diffusion profiles.
+# the scene, `convsss_medium`), an opaque floor, an area light and an environment map, renders it with AOVs, changes
+# the material in a loop reusing everything the material does not change, and plots the diffusion profiles.
 
 # %%
 import os
@@ -43,7 +43,7 @@ sky[:8] *= 2.0  # a brighter upper half
 
 scene_dict = {
     "type": "scene",
-    "integrator": {"type": "convsss"},
+    "integrator": {"type": "convsss", "aovs": "exitance,mask"},  # extra film channels besides RGB
     "sensor": {
         "type": "perspective",
         "fov": 30,
@@ -72,14 +72,23 @@ scene_dict = {
 scene = mi.load_dict(scene_dict, optimize=False)  # optimize=False: Mitsuba would merge shapes of one material
 
 # %% [markdown]
-# ## Render
-# `convsss.render` is `mi.render` with the integrator's own one-line errors. The integrator's `stats` hold the
-# seconds of each stage, the objects (size in mean free paths, samples, flux) and each transport's statistics.
+# ## Render, with AOVs
+# `convsss.render` is `mi.render` with the integrator's own one-line errors. The film holds RGB, then the AOVs'
+# channels in the order `integrator.aov_names()` lists them: here the exitance `M` (paper Eq. 7's, before Fresnel
+# and `1/pi`) and the translucent objects' coverage. The integrator's `stats` hold the seconds of each stage, the
+# objects (size in mean free paths, samples, flux) and each transport's statistics.
 
 # %%
-image = convsss.render(scene, seed=0)
-mi.util.write_bitmap(str(OUT / "milk.png"), image)
+image = np.asarray(convsss.render(scene, seed=0))
 integrator = scene.integrator()
+channels = dict(zip(["R", "G", "B"] + integrator.aov_names(), np.moveaxis(image, -1, 0)))
+rgb = image[..., :3]
+mask = channels["mask.Y"] > 0.5
+exitance = np.stack([channels[f"exitance.{c}"] for c in "RGB"], axis=-1)
+mi.util.write_bitmap(str(OUT / "milk.png"), rgb)
+mi.util.write_bitmap(str(OUT / "milk-mask.png"), mask.astype(np.float32))
+print("sphere pixels", int(mask.sum()), "mean RGB", np.round(rgb[mask].mean(axis=0), 4),
+      "mean exitance M", np.round(exitance[mask].mean(axis=0), 4))
 print({stage: round(seconds, 3) for stage, seconds in integrator.stats["seconds"].items()})
 sphere = integrator.stats["objects"][0]
 print(sphere["name"], "samples", sphere["samples"], "mean free paths across", np.round(sphere["mean_free_paths"], 1))
@@ -98,11 +107,11 @@ means = {}
 for mfp in (0.5, 2.0, 8.0):  # the same colour, light travelling farther and farther
     new = convsss.Material.from_color([0.9, 0.7, 0.5], mfp, eta=obj.eta)
     integrator.retransport(objects=[replace(obj, material=new, profile=new.profile())])
-    edited = np.asarray(integrator.render_prepared())
+    edited = np.asarray(integrator.render_prepared())[..., :3]
     mi.util.write_bitmap(str(OUT / f"mfp-{mfp:g}mm.png"), edited)
-    means[mfp] = edited.reshape(-1, edited.shape[-1])[:, :3].mean(axis=0)
+    means[mfp] = edited[mask].mean(axis=0)  # over the sphere's pixels
     seconds = integrator.stats["seconds"]["transport"]
-    print(f"mfp {mfp:g} mm: mean RGB {np.round(means[mfp], 4)}, transport {seconds:.2f} s")
+    print(f"mfp {mfp:g} mm: sphere's mean RGB {np.round(means[mfp], 4)}, transport {seconds:.2f} s")
 
 # %% [markdown]
 # ## Profiles

@@ -21,8 +21,17 @@ def notebook(tmp_path_factory):
 def test_writes_every_image_and_the_profile_plot(notebook):
     out, _ = notebook
     names = {p.name for p in out.iterdir()}
-    assert {"milk.png", "mfp-0.5mm.png", "mfp-2mm.png", "mfp-8mm.png", "profiles.png"} <= names
+    assert {"milk.png", "milk-mask.png", "mfp-0.5mm.png", "mfp-2mm.png", "mfp-8mm.png", "profiles.png"} <= names
     assert all((out / name).stat().st_size > 0 for name in names)
+
+
+def test_the_aovs_show_the_sphere(notebook):
+    _, ns = notebook
+    mask, exitance = ns["mask"], ns["exitance"]
+    size = mask.shape[0]
+    assert 0.02 * size**2 < mask.sum() < 0.5 * size**2
+    assert np.all(exitance[mask] > 0)
+    assert np.all(exitance[~ns["channels"]["mask.Y"].astype(bool)] == 0)  # no translucent object: no exitance
 
 
 def test_a_material_edit_rebuilds_the_transports_only(notebook):
