@@ -7,7 +7,8 @@ dimensionless. Every profile answers the same questions, which size the convolut
 - ``total_reflectance`` -> ``∫_0^inf 2 pi r R_d(r) dr`` per channel;
 - ``energy_within(radius)`` -> ``∫_0^radius 2 pi r R_d(r) dr``;
 - ``radius_below(t)`` -> smallest r with ``R_d(r) <= t R_d(0)`` (the paper's threshold distance ``d_t``, Eq. 8);
-- ``radius_energy(f)`` -> smallest r that holds all but a fraction ``f`` of the total.
+- ``radius_energy(f)`` -> smallest r that holds all but a fraction ``f`` of the total;
+- ``effective_area()`` -> ``(∫ R_d dA)^2 / ∫ R_d^2 dA``, the area the profile averages over (sizes the samples).
 
 Models (:data:`PROFILE_MODELS`, chosen per object by the renderer's ``profile`` parameter): the classic dipole of
 Jensen et al. 2001 (the paper's choice, here), the better dipole (d'Eon 2012, :mod:`.better_dipole`), photon beam
@@ -37,6 +38,8 @@ from ..errors import ConvsssError
 from ..fresnel import diffuse_fresnel_reflectance
 
 CHANNELS = "RGB"
+#: :meth:`Profile.effective_area` cuts the profile's peak at the radius holding this fraction of its energy.
+PEAK_ENERGY = 0.02
 
 
 def _bisect_decreasing(fn, target, lo, hi, iterations=200):
@@ -98,6 +101,28 @@ class Profile:
         ds = np.log1p(r_max / r_scale) / (size - 1)
         r = r_scale * np.expm1(ds * np.arange(size))
         return r_scale, ds, np.ascontiguousarray(self(r))
+
+    def effective_area(self):
+        """``A_eff = (∫ R_d dA)^2 / ∫ min(R_d, R_d(r_p))^2 dA`` per channel (mm^2, shape (3,)): the area over which the
+        profile averages its sources, ``r_p`` the radius holding the innermost :data:`PEAK_ENERGY` of its energy.
+
+        A sum of Eq. 1 over ``n`` independent random samples per mm^2 has a relative variance ``1 / (n A_eff)`` (without
+        the cut); the renderer sizes its samples by it (``profile_samples``). The cut keeps a (nearly) singular peak,
+        which holds little energy but would dominate ``∫ R_d^2`` (photon beam diffusion's single scattering, Burley's
+        fit: 4-7 times smaller areas uncut, where their measured noise is that of a 2 times smaller one), from
+        asking for samples the noise does not need; it changes the dipole's area by about 2 %. Integrated on
+        :meth:`radial_table` (trapezoids in ``s``); a channel that is zero everywhere gets ``inf``.
+        """
+        r_scale, ds, values = self.radial_table()
+        k = np.arange(1, len(values))
+        weight = 2.0 * np.pi * r_scale**2 * np.expm1(ds * k) * np.exp(ds * k) * ds  # 2 pi r dr/ds, per step
+        weight[[0, -1]] *= 0.5
+        values = values[1:]
+        peak = np.diagonal(np.asarray(self(self.radius_energy(1.0 - PEAK_ENERGY)), dtype=np.float64))
+        first = np.einsum("k,kc->c", weight, values)
+        second = np.einsum("k,kc->c", weight, np.minimum(values, peak) ** 2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(second > 0, first * first / np.where(second > 0, second, 1.0), np.inf)
 
     def radius_below(self, t):
         """Smallest r with ``R_d(r) <= t R_d(0)`` per channel (paper Eq. 8); the support if never reached."""

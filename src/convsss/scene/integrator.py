@@ -4,7 +4,9 @@
 
 1. find the translucent objects (:mod:`.objects`);
 2. per object, sample its whole surface, ``N = sample_density * A / h^2`` points for a layer cell ``h`` (the pixel
-   footprint at the object's depth divided by ``downsample``), so every cell column gets several samples, and
+   footprint at the object's depth divided by ``downsample``), so every cell column gets several samples, and at
+   least ``profile_samples * A / A_eff`` for the profile's effective area ``A_eff``, so that the noise the discrete
+   samples leave in the exitance (which more camera samples do not average out) stays near 1 %; and
    compute their irradiance (paper Eq. 2, :mod:`.irradiance`): direct light from every emitter, and indirect light
    path traced into the scene from the samples (``indirect_samples`` paths per sample) with the shader's path
    tracer, whose hits on translucent objects wait for their transports;
@@ -16,6 +18,7 @@
 Per-stage seconds and everything a user needs to judge the run are in :attr:`ConvsssIntegrator.stats`.
 """
 
+import math
 import warnings
 from dataclasses import dataclass, field
 
@@ -24,7 +27,7 @@ import numpy as np
 
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
-from ..memory import check_memory
+from ..memory import USABLE_FRACTION, available_memory, check_memory
 from ..samples import IrradianceSamples
 from ..timing import StageTimer
 from ..transport import make_transport
@@ -46,6 +49,10 @@ class VisibilityWarning(UserWarning):
     """A translucent object is not seen by the camera and is skipped."""
 
 
+class SampleNoiseWarning(UserWarning):
+    """An object gets fewer surface samples than ``profile_samples`` asks (memory or time): its exitance is noisier."""
+
+
 #: Bytes per path of the shading (the symbolic loop's outputs, the recorded hits' room of 44 bytes a lane, the film's
 #: samples): the peak resident memory grew by 58 and 89 bytes a path over the prepared state's at 800² 16 and 64 spp
 #: on the demo; with a margin.
@@ -61,6 +68,9 @@ RAYS_PER_SECOND = 5e6
 INDIRECT_BOUNCES = 3
 #: A render whose irradiance alone would take longer than this is refused before it starts.
 MAX_IRRADIANCE_SECONDS = 600.0
+#: The share of the memory guard's limit that the ``profile_samples`` rule may fill with one object's samples (the
+#: rest is left to the transport's and the shading's own allocations).
+PROFILE_RULE_MEMORY = 0.5
 
 
 def _seed(seed):
@@ -179,7 +189,16 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             depth = depth if depth > 0 else float(np.median(depths))
             cell_full = pixel_footprint(sensor, frame, depth, p.unit_mm)
             cell = cell_full / p.transport_params().get("downsample", 1.0)
-            count = sample_count(obj.area_mm2, cell, p.sample_density)
+            count_pixel = sample_count(obj.area_mm2, cell, p.sample_density)
+            profile_area = float(np.min(obj.profile.effective_area()))
+            count = wanted = sample_count(obj.area_mm2, cell, p.sample_density, profile_area, p.profile_samples)
+            if count > count_pixel:
+                count = max(count_pixel, min(count, self._sample_cap(scene)))
+                if count < wanted:
+                    warnings.warn(f"translucent shape {obj.name!r}: {wanted} surface samples would keep its sample "
+                                  f"noise near the goal ({p.profile_samples:g} per profile area of {profile_area:.3g} "
+                                  f"mm^2), more than the memory and time limits allow; {count} used: expect about "
+                                  f"{(wanted / count) ** 0.7:.1f}x that noise", SampleNoiseWarning, stacklevel=3)
             check_memory(count * BYTES_PER_SAMPLE, f"{count} surface samples of {obj.name!r}",
                          "lower sample_density, or use downsample 0.5 or 0.25")
             self._check_irradiance_time(scene, count, obj.name)
@@ -187,7 +206,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                                          stage=stage))
             cells.append(cell_full)
             per_object.append({**obj.summary(), "samples": count, "cell_size_mm": cell, "pixel_footprint_mm": cell_full,
-                               "view_depth_mm": depth})
+                               "view_depth_mm": depth, "samples_pixel_rule": count_pixel,
+                               "samples_profile_rule": wanted, "profile_area_mm2": profile_area,
+                               "samples_per_profile_area": count * profile_area / obj.area_mm2})
         indirect, deferred, tracer = self._indirect(scene, shown, direct, _seed(seed), stage)
         irradiance = [s.irradiance if e is None else s.irradiance + e for s, e in zip(direct, indirect)]
 
@@ -348,15 +369,31 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             params["cell_size"] = cell_full
         return params
 
-    def _check_irradiance_time(self, scene, count, name):
-        """Refuse irradiance longer than ``MAX_IRRADIANCE_SECONDS``: ``count`` points x ``irradiance_samples``
-        directions x (one ray per area or environment emitter + one cosine-sampled ray), plus ``count`` x
-        ``indirect_samples`` paths of ``INDIRECT_BOUNCES`` bounces, each a ray and a shadow ray per emitter."""
+    def _irradiance_rays(self, scene, count):
+        """Rays the irradiance of ``count`` points takes: ``count`` x ``irradiance_samples`` directions x (one ray per
+        area or environment emitter + one cosine-sampled ray), plus ``count`` x ``indirect_samples`` paths of
+        ``INDIRECT_BOUNCES`` bounces, each a ray and a shadow ray per emitter."""
         p = self.params
         sampled = sum(not mi.has_flag(e.flags(), mi.EmitterFlags.Delta) for e in scene.emitters())
         direct = count * p.irradiance_samples * (sampled + 1) if sampled else 0
-        indirect = count * p.indirect_samples * INDIRECT_BOUNCES * (1 + len(scene.emitters()))
-        rays = direct + indirect
+        return direct + count * p.indirect_samples * INDIRECT_BOUNCES * (1 + len(scene.emitters()))
+
+    def _sample_cap(self, scene):
+        """The ceiling of the ``profile_samples`` rule for one object: :data:`PROFILE_RULE_MEMORY` of what the memory
+        guard lets through (``BYTES_PER_SAMPLE`` each), and what the irradiance time limit (``MAX_IRRADIANCE_SECONDS``)
+        does."""
+        available = available_memory()
+        by_memory = (PROFILE_RULE_MEMORY * USABLE_FRACTION * available / BYTES_PER_SAMPLE if available is not None
+                     else math.inf)
+        per_point = self._irradiance_rays(scene, 1)
+        by_time = MAX_IRRADIANCE_SECONDS * RAYS_PER_SECOND / per_point if per_point > 0 else math.inf
+        return int(min(by_memory, by_time, 2**31))
+
+    def _check_irradiance_time(self, scene, count, name):
+        """Refuse irradiance longer than ``MAX_IRRADIANCE_SECONDS`` (rays counted by :meth:`_irradiance_rays`)."""
+        p = self.params
+        sampled = sum(not mi.has_flag(e.flags(), mi.EmitterFlags.Delta) for e in scene.emitters())
+        rays = self._irradiance_rays(scene, count)
         if rays / RAYS_PER_SECOND > MAX_IRRADIANCE_SECONDS:
             raise ConvsssError(f"irradiance of {name!r} needs {rays:.3g} rays ({count} points x "
                                f"{p.irradiance_samples} directions x {sampled + 1} + {count} x {p.indirect_samples:g} "

@@ -1,8 +1,11 @@
 """Irradiance samples on the whole surface of a translucent object (paper §4.1 and Eq. 2), vectorized in Dr.Jit.
 
 Points: ``N`` points uniformly distributed over the surface, front and back ("light is sampled from the front and
-the back", §4.1), stratified: a jittered ``k x k`` grid of ``[0,1]^2`` (``N = k^2``) is mapped through Mitsuba's
-``shape.sample_position`` (area-proportional), so each sample stands for the same area ``A_i = A / N``; an instanced
+the back", §4.1), stratified: ``N = k^2`` points of ``[0,1]^2`` are mapped through Mitsuba's ``shape.sample_position``
+(area-proportional), so each sample stands for the same area ``A_i = A / N``; the points are a jittered ``k x k``
+grid for an analytic shape, and for a mesh stratified along a space-filling curve over its faces
+(:func:`mesh_square`: a mesh file's face order is not spatial, and a grid would leave the points as clumped as
+independent ones, whose noise the sum of Eq. 1 inherits); an instanced
 shape is sampled in its shapegroup's space and mapped by the instance's transform, which scales ``A_i`` by the
 map's area element (:func:`sample_surface`).
 
@@ -44,6 +47,12 @@ CHUNK_LANES = 1 << 22
 CHUNK_PATHS = 1 << 19
 #: Indirect directions are stratified over DIRECTION_STRATA^2 cells across neighbouring points.
 DIRECTION_STRATA = 4
+#: Bits per axis of the Morton code that orders a mesh's faces (:func:`mesh_square`).
+MORTON_BITS = 21
+#: The golden ratio's fractional part: the rank-1 lattice of the points within a face.
+GOLDEN = 0.5 * (math.sqrt(5.0) - 1.0)
+#: Whether meshes are sampled by :func:`mesh_square` (False: the plain grid; kept for measuring the difference).
+MESH_STRATIFICATION = True
 
 
 def stratified_square(count, seed, stream=0):
@@ -55,6 +64,70 @@ def stratified_square(count, seed, stream=0):
     u = (mi.Float(index % k) + rng.next_float32()) / k
     v = (mi.Float(index // k) + rng.next_float32()) / k
     return mi.Point2f(u, v)
+
+
+def morton_order(points):
+    """The order of ``points`` (N, 3) along a Morton (Z-order) curve over their bounding box (21 bits per axis): any
+    run of consecutive points in it lies in a few octree cells, so a run is a compact region."""
+    lo = points.min(axis=0)
+    extent = max(float(np.max(points.max(axis=0) - lo)), 1e-300)
+    q = np.minimum((points - lo) / extent * (1 << MORTON_BITS), (1 << MORTON_BITS) - 1).astype(np.uint64)
+    code = np.zeros(len(points), dtype=np.uint64)
+    for axis in range(3):
+        v = q[:, axis]
+        for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                            (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+            v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+        code |= v << np.uint64(axis)
+    return np.argsort(code, kind="stable")
+
+
+def mesh_square(shape, count, seed, stream=0):
+    """Points of ``[0,1]^2`` (``k^2 >= count`` of them, as :func:`stratified_square`) that Mitsuba's
+    ``mesh.sample_position`` maps to points stratified over the mesh's surface at the scale of its faces or finer.
+
+    ``sample_position`` picks the face by the second coordinate through the faces' area CDF in the file's order and
+    reuses what is left of it inside the face; a file's face order is not spatial (on the bunny, 10 % of consecutive
+    faces are more than half the mesh apart), so a grid over the square leaves the points as clumped as independent
+    ones at the scale of a few faces. Here the faces are ordered along a Morton curve of their centroids
+    (:func:`morton_order`), and ``t_i = (i + xi_i) / N`` is stratified along the area CDF in that order: every run of
+    consecutive faces, hence every compact patch, gets its share of the ``N`` points to within one. ``t_i``'s place in
+    its face's interval, ``r``, is carried over to the face's interval of the file's CDF (the second coordinate); the
+    first, which sets the distance from the face's first vertex, is ``frac(s_f + j phi)`` for the ``j``-th point of
+    face ``f`` (``s_f`` uniform per face, ``phi`` the golden ratio), a rank-1 lattice with ``r``, so the points within a
+    large face are spread in both directions. Each point is uniform over the surface, so every estimate stays
+    unbiased.
+    """
+    params = mi.traverse(shape)
+    vertex = np.asarray(params["vertex_positions"], dtype=np.float64).reshape(-1, 3)
+    face = np.asarray(params["faces"], dtype=np.int64).reshape(-1, 3)
+    a, b, c = vertex[face[:, 0]], vertex[face[:, 1]], vertex[face[:, 2]]
+    pmf = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    pmf /= pmf.sum()
+    file_cdf = np.concatenate([[0.0], np.cumsum(pmf)])
+    order = morton_order((a + b + c) / 3.0)
+    curve_cdf = np.concatenate([[0.0], np.cumsum(pmf[order])])
+    k = max(1, math.ceil(math.sqrt(count)))
+    n = k * k
+    rng = np.random.default_rng([int(seed), int(stream), 0x5A3F])
+    t = (np.arange(n) + rng.random(n)) / n
+    # searchsorted(side="right") never lands in a zero-area face (an empty interval).
+    slot = np.clip(np.searchsorted(curve_cdf, t, side="right") - 1, 0, len(face) - 1)
+    picked = order[slot]
+    r = np.clip((t - curve_cdf[slot]) / pmf[picked], 0.0, 1.0)
+    rank = np.arange(n) - np.searchsorted(slot, slot)  # slot is sorted: the point's rank within its face
+    x = (rng.random(len(face))[picked] + rank * GOLDEN) % 1.0
+    y = file_cdf[picked] + r * pmf[picked]
+    return mi.Point2f(np.minimum(x, np.nextafter(1.0, 0.0)).astype(np.float32),
+                      np.minimum(y, np.nextafter(1.0, 0.0)).astype(np.float32))
+
+
+def surface_square(shape, count, seed, stream=0):
+    """The points of ``[0,1]^2`` that ``shape.sample_position`` maps to stratified surface points: :func:`mesh_square`
+    for a mesh, else the jittered grid of :func:`stratified_square` (analytic shapes map the square continuously)."""
+    if shape.is_mesh() and MESH_STRATIFICATION:
+        return mesh_square(shape, count, seed, stream)
+    return stratified_square(count, seed, stream)
 
 
 def sample_surface(shape, count, seed, orientation=1.0, stream=0, to_world=None):
@@ -74,7 +147,7 @@ def sample_surface(shape, count, seed, orientation=1.0, stream=0, to_world=None)
     """
     matrix = np.identity(4) if to_world is None else np.asarray(to_world, dtype=np.float64)
     transform = mi.Transform4f(matrix)
-    u = stratified_square(count, seed, stream)
+    u = surface_square(shape, count, seed, stream)
     ps = shape.sample_position(0.0, u)
     position = transform @ mi.Point3f(ps.p)
     normal = mi.Vector3f(dr.normalize(transform @ mi.Normal3f(ps.n * orientation)))
@@ -308,9 +381,17 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
     return np.maximum(np.nan_to_num(out), 0.0)
 
 
-def sample_count(area_mm2, cell_mm, sample_density):
-    """Surface samples for an object of ``area_mm2``: ``sample_density`` per layer cell of ``cell_mm`` (at least 64)."""
-    return max(64, math.ceil(sample_density * area_mm2 / cell_mm**2))
+def sample_count(area_mm2, cell_mm, sample_density, profile_area_mm2=math.inf, profile_samples=0.0):
+    """Surface samples for an object of ``area_mm2``: ``sample_density`` per layer cell of ``cell_mm``, and at least
+    ``profile_samples`` per effective area ``profile_area_mm2`` of its profile
+    (:meth:`~convsss.profiles.Profile.effective_area`, the smallest over the channels); at least 64.
+
+    The first rule resolves the image; the second bounds the noise of Eq. 1's surface integral summed over the samples,
+    which depends on how many samples the profile averages, not on the pixels (a dense medium seen at a pixel
+    footprint wider than its profile gets few samples per profile from the first rule alone)."""
+    by_pixel = sample_density * area_mm2 / cell_mm**2
+    by_profile = profile_samples * area_mm2 / profile_area_mm2 if profile_samples > 0 else 0.0
+    return max(64, math.ceil(max(by_pixel, by_profile)))
 
 
 def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=0, stage=None):

@@ -11,6 +11,8 @@ from ..parameters import Parameter, check_parameters
 from ..profiles.models import DEFAULT_PROFILE, parse_profile_spec
 
 SPECULARS = ("bsdf", "phong", "none")
+#: Default ``profile_samples``: measured to keep the exitance's sample noise about 1 % (docs/benchmarks.md).
+PROFILE_SAMPLES = 1500.0
 
 #: The integrator's AOVs (``aovs``) and their film channels, ``<name>.<channel>`` (Mitsuba's ``aov`` convention), all
 #: taken at the camera ray's first hit: the transport's exitance ``M`` (paper Eq. 7) and the irradiance ``E`` (Eq. 2)
@@ -71,6 +73,12 @@ def render_parameters():
                   "say how much the last pass changed.", low=1),
         Parameter("sample_density", float, 4.0, "Surface samples per layer cell: N = sample_density * area / cell^2 "
                   "over the whole surface.", low=0.0, low_open=True),
+        Parameter("profile_samples", float, PROFILE_SAMPLES, "Surface samples per effective area of the object's "
+                  "diffusion profile, at least (A_eff = (∫R_d dA)^2 / ∫R_d^2 dA, smallest over the channels): "
+                  "N >= profile_samples * area / A_eff, whatever the pixel footprint, so that the noise the discrete "
+                  "samples leave in the exitance (more camera samples do not remove it) stays about 1 % (mean over "
+                  "the object's pixels) at the default; it falls about as N^-0.7. 0: the pixel rule alone. Capped, "
+                  "with a warning, by the memory and time limits.", low=0.0),
         Parameter("specular", str, "bsdf", "Boundary reflection on translucent objects: the scene's BSDF, the paper's "
                   "Phong lobe weighted by the Fresnel reflectance, or none.", choices=SPECULARS),
         Parameter("phong_exponent", float, 64.0, "Exponent of the Phong lobe with specular = phong.", low=0.0,
