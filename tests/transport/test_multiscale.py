@@ -123,3 +123,11 @@ def test_bunny_at_two_sizes_within_one_percent_of_the_exact_sum(bunny_cases, nam
     exact = make_transport("exact", case["samples"], case["profile"]).exitance(case["points"])
     multi = make_transport("multiscale", case["samples"], case["profile"], case["frame"]).exitance(case["points"])
     assert _mean_rel(multi, exact) < 0.01
+
+
+def test_a_cell_list_too_large_is_refused_before_allocating():
+    """Beam diffusion's near-singular peak gives a core width of microns: on a 40 mm sphere the cell list would need
+    a billions-of-cubes offset table; a one-line error, not a MemoryError."""
+    samples = _lit_sphere(20.0, 2000)
+    with pytest.raises(ConvsssError, match="cell list .* use the hierarchical or exact transport"):
+        make_transport("multiscale", samples, material("wholemilk").profile("pbd"), FRAME)

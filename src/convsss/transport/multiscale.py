@@ -380,6 +380,11 @@ class CellList:
         self.origin, self.size = origin, size
         extent = position.max(axis=0) - origin if len(position) else np.zeros(3)
         self.dims = np.maximum(np.ceil(extent / size).astype(np.int64), 1)
+        # Its start offsets, one int64 a cube: refused before allocating (a profile whose core is far narrower than
+        # the object, e.g. a near-singular peak, asks for billions).
+        check_memory(8 * (float(np.prod(self.dims.astype(np.float64))) + 1),
+                     f"the offsets of the multiscale transport's cell list ({' x '.join(map(str, self.dims))} cubes of {size:.3g} mm)",
+                     "use the hierarchical or exact transport for this profile, or raise the accuracy")
         order, self.starts = _cell_list(position, origin, size, self.dims)
         self.position = np.ascontiguousarray(position[order])
         self.flux = np.ascontiguousarray(flux[order])
