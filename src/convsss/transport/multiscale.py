@@ -382,8 +382,9 @@ class CellList:
         self.dims = np.maximum(np.ceil(extent / size).astype(np.int64), 1)
         # Its start offsets, one int64 a cube: refused before allocating (a profile whose core is far narrower than
         # the object, e.g. a near-singular peak, asks for billions).
+        cubes = " x ".join(map(str, self.dims))
         check_memory(8 * (float(np.prod(self.dims.astype(np.float64))) + 1),
-                     f"the offsets of the multiscale transport's cell list ({' x '.join(map(str, self.dims))} cubes of {size:.3g} mm)",
+                     f"the offsets of the multiscale transport's cell list ({cubes} cubes of {size:.3g} mm)",
                      "use the hierarchical or exact transport for this profile, or raise the accuracy")
         order, self.starts = _cell_list(position, origin, size, self.dims)
         self.position = np.ascontiguousarray(position[order])
