@@ -7,7 +7,7 @@ from scipy.integrate import quad
 import convsss
 from convsss.errors import ConvsssError
 from convsss.fresnel import diffuse_transmittance, fresnel_moment, fresnel_reflectance
-from convsss.profiles import PROFILE_MODELS, BeamDiffusionProfile, BetterDipoleProfile, BurleyProfile
+from convsss.profiles import DEFAULT_PROFILE, PROFILE_MODELS, BeamDiffusionProfile, BetterDipoleProfile, BurleyProfile
 from convsss.profiles.beam_diffusion import single_scattering
 from convsss.profiles.burley import burley_values, mean_radius
 from convsss.profiles.diffusion import boundary, point_source_exitance
@@ -126,7 +126,7 @@ def test_total_reflectance_increases_with_albedo():
 def test_profile_spec(tmp_path):
     csv = tmp_path / "p.csv"
     csv.write_text("r_mm,R,G,B\n0,1,1,1\n1,0,0,0\n")
-    assert parse_profile_spec("") == ("dipole", {}) or parse_profile_spec("")[1] == {}
+    assert parse_profile_spec("") == (DEFAULT_PROFILE, {}) and DEFAULT_PROFILE in PROFILE_MODELS
     assert parse_profile_spec("pbd") == ("pbd", {})
     assert parse_profile_spec(f"bunny=burley, dragon={csv}, better-dipole") == (
         "better-dipole", {"bunny": "burley", "dragon": str(csv)})

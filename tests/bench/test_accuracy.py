@@ -117,3 +117,19 @@ def test_bench_accuracy_quick_end_to_end(tmp_path, monkeypatch):
     assert (tmp_path / "accuracy.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert json.loads((tmp_path / "accuracy.json").read_text())["rows"] == out["rows"]
     assert "front" in (tmp_path / "accuracy.txt").read_text()
+
+
+def test_a_case_takes_the_profile_the_renderer_would():
+    from convsss.bench.scenes import prepare_case, scene_dict
+    from convsss.profiles import DEFAULT_PROFILE, PROFILE_MODELS
+
+    for spec, model in (("", DEFAULT_PROFILE), ("pbd", "pbd"), ("better-dipole", "better-dipole")):
+        case = prepare_case(scene_dict("bunny4", 24), sample_density=0.5, profile=spec)
+        assert type(case["profile"]) is PROFILE_MODELS[model]
+        assert case["object"]["profile"].startswith(PROFILE_MODELS[model].__name__)
+
+
+def test_bench_accuracy_refuses_a_bad_profile_in_one_line():
+    result = CliRunner().invoke(cli, ["bench", "accuracy", "--quick", "--profile", "pdb"])
+    assert result.exit_code != 0 and "profile model 'pdb' is not allowed" in result.output
+    assert "Traceback" not in result.output

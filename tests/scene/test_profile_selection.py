@@ -4,7 +4,14 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
-from convsss.profiles import BeamDiffusionProfile, BurleyProfile, DipoleProfile, TabulatedProfile
+from convsss.profiles import (
+    DEFAULT_PROFILE,
+    PROFILE_MODELS,
+    BeamDiffusionProfile,
+    BurleyProfile,
+    DipoleProfile,
+    TabulatedProfile,
+)
 from convsss.scene.materials import translucent
 from convsss.scene.objects import find_translucent_objects
 
@@ -26,7 +33,9 @@ def _profiles(mi, scene, spec):
 def test_one_model_for_every_object_and_per_object_choices(mi, two_spheres, tmp_path):
     assert all(isinstance(p, BeamDiffusionProfile) for p in _profiles(mi, two_spheres, "pbd").values())
     chosen = _profiles(mi, two_spheres, "skin=burley")
-    assert isinstance(chosen["skin"], BurleyProfile) and isinstance(chosen["milk"], DipoleProfile)
+    assert isinstance(chosen["skin"], BurleyProfile) and type(chosen["milk"]) is PROFILE_MODELS[DEFAULT_PROFILE]
+    chosen = _profiles(mi, two_spheres, "skin=burley,dipole")
+    assert isinstance(chosen["skin"], BurleyProfile) and type(chosen["milk"]) is DipoleProfile
     csv = tmp_path / "flat.csv"
     csv.write_text("r_mm,R,G,B\n0,0.1,0.1,0.1\n2,0,0,0\n")
     chosen = _profiles(mi, two_spheres, f"pbd,milk={csv}")

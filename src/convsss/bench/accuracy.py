@@ -228,20 +228,22 @@ def _row(scene, config, times, stages, errors, transport, n_points, n_samples):
 # --- the whole benchmark -------------------------------------------------------------------------------------------
 def bench_accuracy(scenes=tuple(SCENES), resolution=800, layer_counts=LAYERS, downsamples=(1.0,),
                    thresholds=THRESHOLDS, epsilons=EPSILONS, accuracies=ACCURACIES, runs=3, sample_density=4.0,
-                   seed=0, reference_points=REFERENCE_POINTS, cache=EXACT_CACHE, progress=True):
+                   seed=0, reference_points=REFERENCE_POINTS, cache=EXACT_CACHE, progress=True, profile=""):
     """Run the benchmark on each scene (names in :data:`SCENES`): ``{"meta", "rows", "headline": {scene: ...}}``;
-    the headline of each method against the hierarchical one (module doc)."""
+    the headline of each method against the hierarchical one (module doc). ``profile``: the objects' profile (the
+    integrator's ``profile`` parameter; empty: the default model)."""
     configs = (multiscale_configs(accuracies) + convolution_configs(layer_counts, downsamples, thresholds)
                + hierarchical_configs(epsilons))
     meta = {"resolution": int(resolution), "runs": int(runs), "sample_density": float(sample_density),
-            "seed": int(seed), "reference_points": int(reference_points), "cpus": os.cpu_count(),
+            "seed": int(seed), "reference_points": int(reference_points), "profile": profile,
+            "cpus": os.cpu_count(),
             "load_average_start": list(os.getloadavg()), "scenes": {}}
     rows, headlines = [], {}
     bar = tqdm(total=len(scenes) * (1 + runs * len(configs)), desc="bench accuracy", unit="run",
                disable=not progress)
     for scene in scenes:
         bar.set_postfix_str(f"{scene}: samples")
-        case = prepare_case(scene_dict(scene, resolution), sample_density, seed)
+        case = prepare_case(scene_dict(scene, resolution), sample_density, seed, profile)
         subset = reference_subset(len(case["points"]), reference_points)
         bar.set_postfix_str(f"{scene}: exact sum at {len(subset)} points")
         spec = SCENES[scene]
@@ -251,6 +253,7 @@ def bench_accuracy(scenes=tuple(SCENES), resolution=800, layer_counts=LAYERS, do
                                  "cell_size_mm": case["cell_size"], "image": case["image"],
                                  "boundary": case["object"]["boundary"], "eta": case["object"]["eta"],
                                  "mean_free_paths": case["object"]["mean_free_paths"],
+                                 "profile": case["object"]["profile"],
                                  "prepare_s": case["prepare_s"]}
         scene_rows = bench_points(case["samples"], case["points"], case["profile"], case["frame"], case["cell_size"],
                                   configs, runs, bar, scene, case["normals"], subset, cache)
@@ -290,7 +293,8 @@ def report_text(result):
                      f"({facts.get('reference_points', facts['points'])} with the exact sum), "
                      f"{facts['samples']} samples, "
                      f"boundary {facts['boundary']} (eta {facts['eta']:.3g}), "
-                     f"pixel {facts['cell_size_mm']:.3f} mm")
+                     f"pixel {facts['cell_size_mm']:.3f} mm"
+                     + (f", profile {facts['profile'].partition('(')[0]}" if facts.get("profile") else ""))
     lines.append(f"median of {meta['runs']} runs; load average {meta['load_average_start'][0]:.2f} at the start, "
                  f"{meta['load_average_end'][0]:.2f} at the end ({meta['cpus']} CPUs)")
     lines += [headline_text(scene, h) for scene, h in result["headline"].items()]

@@ -74,8 +74,9 @@ def scene_dict(scene, resolution=800):
     return out
 
 
-def prepare_case(scene_dict, sample_density=4.0, seed=0):
-    """Samples and visible points of the scene's (first) translucent object, as a render prepares them.
+def prepare_case(scene_dict, sample_density=4.0, seed=0, profile=""):
+    """Samples and visible points of the scene's (first) translucent object, as a render prepares them, its profile
+    chosen by ``profile`` (the integrator's ``profile`` parameter; empty: the default model).
 
     Returns a dict: ``samples`` (IrradianceSamples), ``points`` (K, 3) mm, their outward ``normals``, ``profile``,
     ``frame`` (ViewFrame),
@@ -93,10 +94,10 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0):
     mi = load_mitsuba()
     start = time.perf_counter()
     scene = load_scene(scene_dict)
-    params = RenderParams(transport="exact", sample_density=sample_density)
+    params = RenderParams(transport="exact", sample_density=sample_density, profile=profile)
     sensor = scene.sensors()[0]
     frame = sensor_frame(sensor, params.unit_mm)
-    obj = find_translucent_objects(mi, scene, params.unit_mm)[0]
+    obj = find_translucent_objects(mi, scene, params.unit_mm, params.profile)[0]
     depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
     cell = pixel_footprint(sensor, frame, depth, params.unit_mm)
     samples = object_samples(scene, obj, sample_count(obj.area_mm2, cell, sample_density), params.irradiance_samples,

@@ -9,6 +9,12 @@ from .main import cli
 from .options import PROGRESS
 
 
+#: The objects' profile in a benchmark: the integrator's ``profile`` parameter (checked as a render checks it).
+PROFILE = click.option("--profile", default="", metavar="SPEC",
+                       help="The object's diffusion profile, as the integrator's profile parameter: a model (dipole, "
+                            "better-dipole, pbd, burley) or a CSV file r_mm, R, G, B. [default: the renderer's]")
+
+
 @cli.group()
 def bench():
     """Benchmarks: medians of several runs per stage, with ratios measured in the same run."""
@@ -87,13 +93,15 @@ def bench_render_command(quick, runs, commands, as_json, progress):
               help="Visible points (a fixed random subset) at which the exact sum is the reference.")
 @click.option("--sample-density", type=click.FloatRange(0, min_open=True), default=4.0, show_default=True,
               help="Surface samples per full-resolution pixel footprint (as the integrator's sample_density).")
+@PROFILE
 @click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False),
               help="Write accuracy.png (Pareto plot), accuracy.json (rows, facts, headline) and accuracy.txt (table) "
                    "into this folder.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print {meta, rows, headline} as JSON instead of the table.")
 @PROGRESS
-def bench_accuracy_command(quick, runs, width, scenes, reference_points, sample_density, out_dir, as_json, progress):
+def bench_accuracy_command(quick, runs, width, scenes, reference_points, sample_density, profile, out_dir, as_json,
+                           progress):
     """Error against the exact sum versus wall time of every transport, at render scale.
 
     Every transport gets the same irradiance samples (prepared as a render does) and is queried at the same visible
@@ -109,9 +117,13 @@ def bench_accuracy_command(quick, runs, width, scenes, reference_points, sample_
     from ..bench.accuracy import accuracy_plot, bench_accuracy, report_text
     from ..files import check_outputs, json_ready, text_writer, write_files
 
+    from ..profiles.models import parse_profile_spec
+
+    parse_profile_spec(profile)  # a bad profile fails before anything is loaded
     outputs = {suffix: Path(out_dir) / f"accuracy.{suffix}" for suffix in ("png", "json", "txt")} if out_dir else {}
     check_outputs(outputs.values())
-    options = dict(runs=runs, sample_density=sample_density, reference_points=reference_points, progress=progress)
+    options = dict(runs=runs, sample_density=sample_density, reference_points=reference_points, progress=progress,
+                   profile=profile or "")
     if quick:
         result = bench_accuracy(scenes=scenes or ("bunny4", "bunny40"), resolution=width or 96,
                                 layer_counts=(4, 8), accuracies=(0.01, 0.1), epsilons=(0.05, 0.5, 2.0), **options)
