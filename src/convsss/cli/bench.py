@@ -8,7 +8,6 @@ from ..bench.scenes import REFERENCE_POINTS, SCENES
 from .main import cli
 from .options import PROGRESS
 
-
 #: The objects' profile in a benchmark: the integrator's ``profile`` parameter (checked as a render checks it).
 PROFILE = click.option("--profile", default="", metavar="SPEC",
                        help="The object's diffusion profile, as the integrator's profile parameter: a model (dipole, "
@@ -116,7 +115,6 @@ def bench_accuracy_command(quick, runs, width, scenes, reference_points, sample_
 
     from ..bench.accuracy import accuracy_plot, bench_accuracy, report_text
     from ..files import check_outputs, json_ready, text_writer, write_files
-
     from ..profiles.models import parse_profile_spec
 
     parse_profile_spec(profile)  # a bad profile fails before anything is loaded
