@@ -1,6 +1,7 @@
 """One contract, every registered transport (as Mitsuba runs one suite over its ``INTEGRATORS``): a thick slab under
 uniform light exits ``R_total E``; a point source reproduces ``R_d(r)``; a lit sphere agrees with the exact sum;
-the same inputs give the same output bit for bit; exitance is never negative; parameters are declared and checked."""
+the same inputs give the same output bit for bit; relit with other irradiance, a transport answers as one built for
+it; exitance is never negative; parameters are declared and checked."""
 
 import numpy as np
 import pytest
@@ -83,6 +84,22 @@ def test_agrees_with_the_exact_sum_deterministic_and_non_negative(kind):
     np.testing.assert_array_equal(first, again)
     assert first.min() >= 0
     assert np.linalg.norm(first - exact) / np.linalg.norm(exact) < 0.03
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_relit_equals_a_transport_built_for_the_new_irradiance(kind):
+    """Eq. 1 is linear in E: a transport relit with other irradiance at the same samples (what it may keep of their
+    places) answers as one built for it, and the original is left as it was."""
+    skin = material("skin1").profile()
+    samples = _sphere()
+    points = samples.position[::7]
+    other = samples.irradiance * np.linspace(0.2, 2.0, len(samples))[:, None] + [0.0, 0.1, 0.3]
+    first = _make(kind, samples, skin)
+    before = first.exitance(points)
+    relit = first.relit(other).exitance(points)
+    fresh = _make(kind, IrradianceSamples(samples.position, samples.area, other, samples.normal), skin)
+    np.testing.assert_allclose(relit, fresh.exitance(points), rtol=1e-6, atol=1e-9 * np.abs(before).max())
+    np.testing.assert_array_equal(first.exitance(points), before)
 
 
 @pytest.mark.parametrize("kind", KINDS)

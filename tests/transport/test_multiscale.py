@@ -8,7 +8,7 @@ from convsss import material
 from convsss.errors import ConvsssError
 from convsss.samples import IrradianceSamples, ViewFrame
 from convsss.transport import make_transport
-from convsss.transport.multiscale import BAND_TABLE, cluster, core_width, scales, sheet_side, split
+from convsss.transport.multiscale import BAND_TABLE, core_width, cube_cells, group, merge, scales, sheet_side, split
 
 FRAME = ViewFrame.look_at(origin=[0, 0, 100], target=[0, 0, 0])
 
@@ -67,14 +67,16 @@ def test_clusters_keep_the_flux_and_the_two_sides_of_a_sheet_apart():
     normal[::2] *= -1  # a sheet much thinner than a cluster, seen from both sides
     flux = rng.random((5000, 3))
     origin = position.min(axis=0)
-    fine = cluster(position, sheet_side(normal), np.full(5000, 1e-3), flux, 0.5, origin)
+    side, area = sheet_side(normal), np.full(5000, 1e-3)
+    grouping = group(cube_cells(position, origin, 0.5), side)
+    fine = merge(grouping, position, area, flux)
     np.testing.assert_allclose(fine.flux.sum(axis=0), flux.sum(axis=0))
     np.testing.assert_allclose(fine.area.sum(), 5.0)
     assert len(fine) == 2 * 8 * 8  # 8 x 8 cubes, two sides each
     assert np.all(fine.centre.min(axis=0) >= origin) and np.all(fine.centre.max(axis=0) <= position.max(axis=0))
-    # Clustered again in cubes twice as large: whole clusters merge, as if the samples had been clustered so.
-    coarse = cluster(fine.centre, fine.side, fine.area, fine.flux, 1.0, origin)
-    direct = cluster(position, sheet_side(normal), np.full(5000, 1e-3), flux, 1.0, origin)
+    # The groups' cubes halved: whole clusters merge, as if the samples had been clustered in cubes twice as large.
+    coarse = merge(group(grouping.cells // 2, grouping.side), fine.centre, fine.area, fine.flux)
+    direct = merge(group(cube_cells(position, origin, 1.0), side), position, area, flux)
     assert len(coarse) == len(direct) == 2 * 4 * 4
     np.testing.assert_allclose(coarse.flux, direct.flux)
     np.testing.assert_allclose(coarse.centre, direct.centre)

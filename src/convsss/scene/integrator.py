@@ -212,9 +212,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         indirect, deferred, tracer = self._indirect(scene, shown, direct, _seed(seed), stage)
         irradiance = [s.irradiance if e is None else s.irradiance + e for s, e in zip(direct, indirect)]
 
-        def build(k, extra=0.0):
+        def build(k):
             s = direct[k]
-            samples = IrradianceSamples(s.position, s.area, irradiance[k] + extra, s.normal)
+            samples = IrradianceSamples(s.position, s.area, irradiance[k], s.normal)
             with stage("transport"):
                 return make_transport(p.transport, samples, shown[k].profile, frame=frame,
                                       **self._transport_params(cells[k]))
@@ -267,9 +267,10 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         ``passes`` one ``{"flux_change": ...}`` per pass (the largest change of an object's flux, relative to it).
 
         That light needs the exitance of the objects it came from, which depends on it too: Jacobi passes. The
-        transports are built from ``irradiance`` (``build(k, extra)``); each of ``indirect_passes`` passes looks the
-        recorded hits ``deferred`` up in the last transports (paper Eq. 7) and builds those of the objects they
-        light again. One pass leaves out light that crossed between translucent objects twice.
+        transports are built from ``irradiance`` (``build(k)``); each of ``indirect_passes`` passes looks the
+        recorded hits ``deferred`` up in the last transports (paper Eq. 7) and relights those of the objects they
+        reach with it (:meth:`~convsss.transport.base.Transport.relit`: the samples' places are kept). One pass
+        leaves out light that crossed between translucent objects twice.
         """
         transports = [build(k) for k in range(len(samples))]
         light = [np.zeros_like(e) for e in irradiance]
@@ -286,8 +287,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                     change = max(change, float(np.max(moved / np.maximum(flux, 1e-300))))
                     light[k] = new
             passes.append({"flux_change": change})
-            transports = [build(k, light[k]) if records else t
-                          for k, (t, records) in enumerate(zip(transports, deferred))]
+            with stage("transport"):
+                transports = [t.relit(irradiance[k] + light[k]) if records else t
+                              for k, (t, records) in enumerate(zip(transports, deferred))]
         return transports, light, passes
 
     def retransport(self, objects=None, params=None):
@@ -330,9 +332,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self._stage(name)
             return timer(name)
 
-        def build(k, extra=0.0):  # as prepare's, with the new objects' profiles
+        def build(k):  # as prepare's, with the new objects' profiles
             s = state.samples[k]
-            samples = IrradianceSamples(s.position, s.area, state.irradiance[k] + extra, s.normal)
+            samples = IrradianceSamples(s.position, s.area, state.irradiance[k], s.normal)
             with stage("transport"):
                 return make_transport(p.transport, samples, objects[k].profile, frame=state.frame,
                                       **self._transport_params(state.cells[k]))

@@ -34,6 +34,7 @@ Everything is one batch of Dr.Jit arrays per chunk of points (no Python loop ove
 import math
 
 import drjit as dr
+import numba
 import numpy as np
 
 from ..backend import load_mitsuba
@@ -304,17 +305,40 @@ def stratified_directions(points, owners, spacing, seed, strata=4):
     """
     rng = np.random.default_rng([int(seed), 0x57A7])
     cells = strata * strata
-    voxel = np.floor(points[owners] / spacing).astype(np.int64)
-    key = (voxel[:, 0] * 73856093) ^ (voxel[:, 1] * 19349663) ^ (voxel[:, 2] * 83492791)  # collisions merge voxels
-    order = np.argsort(key)
-    sorted_key = key[order]
-    start = np.r_[True, sorted_key[1:] != sorted_key[:-1]]
-    rank = np.empty(len(owners), dtype=np.int64)
-    rank[order] = np.arange(len(owners)) - np.maximum.accumulate(np.where(start, np.arange(len(owners)), 0))
+    key, rank = _voxel_ranks(np.ascontiguousarray(points, dtype=np.float64), owners.astype(np.int64), spacing)
     shift = (key.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15) >> np.uint64(40)).astype(np.int64)
     cell = rng.permutation(cells)[(rank + shift) % cells]
     u = (np.stack([cell % strata, cell // strata], axis=1) + rng.random((len(owners), 2))) / strata
     return np.minimum(u, np.nextafter(1.0, 0.0)).astype(np.float32)
+
+
+@numba.njit(cache=True)
+def _voxel_ranks(points, owners, spacing):
+    """Per path, a hash of the voxel of edge ``spacing`` its point falls in (collisions merge voxels) and the number
+    of earlier paths with the same hash (counted in an open-addressing table)."""
+    n = owners.shape[0]
+    size = 16
+    while size < 2 * n:
+        size *= 2
+    slot_key = np.empty(size, dtype=np.int64)
+    slot_count = np.zeros(size, dtype=np.int64)
+    used = np.zeros(size, dtype=np.bool_)
+    key = np.empty(n, dtype=np.int64)
+    rank = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        p = owners[k]
+        i = np.int64(np.floor(points[p, 0] / spacing))
+        j = np.int64(np.floor(points[p, 1] / spacing))
+        m = np.int64(np.floor(points[p, 2] / spacing))
+        key[k] = (i * 73856093) ^ (j * 19349663) ^ (m * 83492791)
+        slot = (key[k] * 0x2545F491) & (size - 1)
+        while used[slot] and slot_key[slot] != key[k]:
+            slot = (slot + 1) & (size - 1)
+        used[slot] = True
+        slot_key[slot] = key[k]
+        rank[k] = slot_count[slot]
+        slot_count[slot] += 1
+    return key, rank
 
 
 def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None):

@@ -9,6 +9,8 @@ in the units of ``E``. The outgoing radiance is ``L = (1/pi) F_t(eta, w_o) M`` (
 never here. A transport knows nothing of Mitsuba.
 """
 
+import dataclasses
+
 from ..parameters import check_parameters
 from ..samples import IrradianceSamples, ViewFrame, as_points
 from ..timing import StageTimer
@@ -73,6 +75,15 @@ class Transport:
         if normals is not None:
             self._correct(points, normals, out)
         return out
+
+    def relit(self, irradiance):
+        """This transport for new irradiance (N, 3) at the same samples: Eq. 1 is linear in ``E`` and nothing of the
+        samples' places changes, so a transport may keep what it built from them (:meth:`_relit`)."""
+        return self._relit(dataclasses.replace(self.samples, irradiance=irradiance))
+
+    def _relit(self, samples):
+        """A transport of ``samples`` (this one's but for their irradiance); by default built again."""
+        return type(self)(samples, self.profile, self.frame, **self.params)
 
     def _prepare(self, points):
         """Work a query needs before the lookup itself (timed by the transport under its own stage names)."""

@@ -33,6 +33,7 @@ radius where ``R_d`` falls to half its peak, smallest over the channels: about 0
 see :func:`scales`. The lengths are common to the channels, sized by the narrowest.
 """
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -43,6 +44,7 @@ import scipy.fft
 from ..errors import ConvsssError
 from ..memory import check_memory
 from ..parameters import Parameter
+from ..timing import StageTimer
 from .base import Transport, register_transport
 from .kernels import KernelCache, profile_key
 from .radial import RadialTable, profile_lookup
@@ -177,8 +179,40 @@ def sheet_side(normal):
     without normals): clusters never merge samples of different sides, so the two sides of a thin sheet stay apart."""
     if normal is None:
         return None
-    axis = np.argmax(np.abs(normal), axis=1)
-    return axis * 2 + (normal[np.arange(len(axis)), axis] > 0)
+    return _sheet_side(np.ascontiguousarray(normal, dtype=np.float64))
+
+
+@numba.njit(cache=True)
+def _sheet_side(normal):
+    side = np.empty(normal.shape[0], dtype=np.int64)
+    for k in range(normal.shape[0]):
+        axis = 0
+        for a in (1, 2):
+            if abs(normal[k, a]) > abs(normal[k, axis]):
+                axis = a
+        side[k] = 2 * axis + (normal[k, axis] > 0)
+    return side
+
+
+@numba.njit(cache=True)
+def bounds(points):
+    """The lowest and highest coordinates of ``points`` (N >= 1, 3), each (3,)."""
+    lo, hi = points[0].copy(), points[0].copy()
+    for k in range(1, points.shape[0]):
+        for c in range(3):
+            lo[c] = min(lo[c], points[k, c])
+            hi[c] = max(hi[c], points[k, c])
+    return lo, hi
+
+
+@numba.njit(cache=True)
+def cube_cells(points, origin, size):
+    """The cube of side ``size`` from ``origin`` holding each point: ``floor((x - origin) / size)``, (N, 3) int64."""
+    cells = np.empty(points.shape, dtype=np.int64)
+    for k in range(points.shape[0]):
+        for c in range(3):
+            cells[k, c] = np.int64(np.floor((points[k, c] - origin[c]) / size))
+    return cells
 
 
 @dataclass(frozen=True)
@@ -196,37 +230,41 @@ class Clusters:
         return len(self.centre)
 
 
-def cluster(position, side, area, flux, size, origin):
-    """Points merged in cubes of side ``size`` from ``origin`` and, where ``side`` is given, by side.
+@dataclass(frozen=True)
+class Grouping:
+    """Which cube each point falls in: ``index`` (N,) its group, ``first`` (G,) a member of each group, ``cells``
+    (G, 3) int64 each group's cube, ``side`` (G,) its :func:`sheet_side` (None without normals)."""
 
-    Parameters
-    ----------
-    position : (N, 3) float64, mm
-    side : (N,) int in 0-5 (:func:`sheet_side`) or None
-    area : (N,) float64, mm^2
-    flux : (N, 3) float64, ``Phi_i = E_i A_i``
-    size : float, mm
-    origin : (3,) float64, mm, at or below every position
+    index: np.ndarray
+    first: np.ndarray
+    cells: np.ndarray
+    side: np.ndarray | None
 
-    Returns
-    -------
-    Clusters
-        Clustering them again with a multiple of ``size`` (same ``origin``) merges whole clusters, as clustering
-        the points would up to where a centroid sits on a cube's face.
-    """
-    cells = np.floor((position - origin) / size).astype(np.int64)
-    dims = cells.max(axis=0) + 1
+    def __len__(self):
+        return len(self.first)
+
+
+def group(cells, side):
+    """Points grouped by their cube ``cells`` (N, 3) int64 (>= 0, :func:`cube_cells`) and, where ``side`` (N,) is
+    given, by side (:func:`sheet_side`): a :class:`Grouping`. Grouping its ``cells // k`` again merges whole groups, as
+    grouping the points in cubes ``k`` times as large would."""
+    dims = cells.max(axis=0) + 1 if len(cells) else np.ones(3, dtype=np.int64)
     key = (cells[:, 0] * dims[1] + cells[:, 1]) * dims[2] + cells[:, 2]
     if side is not None:
         key = key * 6 + side
-    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-    count = len(first)
+    _, first, index = np.unique(key, return_index=True, return_inverse=True)
+    return Grouping(index.reshape(-1), first, cells[first], None if side is None else side[first])
+
+
+def merge(grouping, position, area, flux):
+    """The :class:`Clusters` of the points (``position`` (N, 3), ``area`` (N,), ``flux`` (N, 3)) of ``grouping``."""
+    count = len(grouping)
     weight = flux.sum(axis=1) + 1e-30 * area
-    norm = np.bincount(inverse, weight, count)
-    centre = np.stack([np.bincount(inverse, weight * position[:, c], count) for c in range(3)], axis=1)
-    total = np.stack([np.bincount(inverse, flux[:, c], count) for c in range(3)], axis=1)
+    norm = np.bincount(grouping.index, weight, count)
+    centre = np.stack([np.bincount(grouping.index, weight * position[:, c], count) for c in range(3)], axis=1)
+    total = np.stack([np.bincount(grouping.index, flux[:, c], count) for c in range(3)], axis=1)
     return Clusters(np.ascontiguousarray(centre / norm[:, None]), np.ascontiguousarray(total),
-                    np.bincount(inverse, area, count), None if side is None else side[first])
+                    np.bincount(grouping.index, area, count), grouping.side)
 
 
 @numba.njit(inline="always")
@@ -414,18 +452,34 @@ class MultiscaleTransport(Transport):
         with self.timings("kernels"):
             self.scales = sc = scales(profile, self.params["accuracy"])
             self._far_cap, self._core, self._band = split(profile, sc.core, sc.split)
-        view = self._to_view(samples.position)
-        lo, hi = view.min(axis=0), view.max(axis=0)
-        with self.timings("clusters"):
+        with self.timings("clusters"):  # the samples' places: which cluster each falls in, whatever its flux
+            self._view = self._to_view(samples.position)
+            self._lo, self._hi = bounds(self._view)
             side = sheet_side(None if samples.normal is None else self._to_view(samples.normal, vectors=True))
-            fine = cluster(view, side, samples.area, samples.flux, sc.cluster, lo)
-            coarse = cluster(fine.centre, fine.side, fine.area, fine.flux, sc.band_cluster, lo)
+            self._fine = group(cube_cells(self._view, self._lo, sc.cluster), side)
+            self._coarse = group(self._fine.cells // round(sc.band_cluster / sc.cluster), self._fine.side)
+        self._build()
+
+    def _build(self):
+        """Everything that depends on the samples' flux: the clusters' flux and centroids, the cell lists, the far
+        field and the middle band."""
+        sc, lo, hi = self.scales, self._lo, self._hi
+        with self.timings("clusters"):
+            fine = merge(self._fine, self._view, self.samples.area, self.samples.flux)
+            coarse = merge(self._coarse, fine.centre, fine.area, fine.flux)
             self.clusters = len(fine)
         with self.timings("cell_lists"):
             self._core_cells = CellList(fine.centre, fine.flux, lo, sc.core)
             self._band_cells = CellList(coarse.centre, coarse.flux, lo, sc.split)
         self._far_field(fine.centre, fine.flux, lo, hi)
         self._middle_band(fine.centre, lo, hi)
+
+    def _relit(self, samples):
+        """The same places and clusters with the new samples' flux: only :meth:`_build` runs again."""
+        new = copy.copy(self)
+        new.samples, new.timings = samples, StageTimer()
+        new._build()
+        return new
 
     def _to_view(self, points, vectors=False):
         f = self.frame
