@@ -174,6 +174,24 @@ def far_spectrum(radial, r_c, a, b, h, fft_shape, reach):
     return spectrum.astype(np.complex64)
 
 
+def padded_convolution(grid, kernel_hat, fft_shape):
+    """The cyclic convolution on ``fft_shape`` of ``grid`` (C, nx, ny, nz), zero-padded to it, with a kernel of
+    spectrum ``kernel_hat`` (``rfftn`` over the last three axes), read back on the grid's own cells.
+
+    The same as ``irfftn(rfftn(grid padded) * kernel_hat)[:, :nx, :ny, :nz]``, with the transforms along each axis
+    run only over the lines that hold data or are read back (about 0.6 times the work for a grid padded to twice
+    its size per axis).
+    """
+    _, nx, ny, nz = grid.shape
+    spectrum = scipy.fft.rfft(grid, n=fft_shape[2], axis=3, workers=-1)
+    spectrum = scipy.fft.fft(spectrum, n=fft_shape[1], axis=2, workers=-1, overwrite_x=True)
+    spectrum = scipy.fft.fft(spectrum, n=fft_shape[0], axis=1, workers=-1, overwrite_x=True)
+    spectrum *= kernel_hat
+    spectrum = scipy.fft.ifft(spectrum, axis=1, workers=-1, overwrite_x=True)[:, :nx]
+    spectrum = scipy.fft.ifft(spectrum, axis=2, workers=-1, overwrite_x=True)[:, :, :ny]
+    return np.ascontiguousarray(scipy.fft.irfft(spectrum, n=fft_shape[2], axis=3, workers=-1)[..., :nz])
+
+
 def sheet_side(normal):
     """Per sample, the axis and sign of its normal's largest component, ``2 axis + (component > 0)`` in 0-5 (all 0
     without normals): clusters never merge samples of different sides, so the two sides of a thin sheet stay apart."""
@@ -246,25 +264,68 @@ class Grouping:
 
 def group(cells, side):
     """Points grouped by their cube ``cells`` (N, 3) int64 (>= 0, :func:`cube_cells`) and, where ``side`` (N,) is
-    given, by side (:func:`sheet_side`): a :class:`Grouping`. Grouping its ``cells // k`` again merges whole groups, as
-    grouping the points in cubes ``k`` times as large would."""
+    given, by side (:func:`sheet_side`), groups numbered in the order of their first point: a :class:`Grouping`.
+    Grouping its ``cells // k`` again merges whole groups, as grouping the points in cubes ``k`` times as large
+    would."""
     dims = cells.max(axis=0) + 1 if len(cells) else np.ones(3, dtype=np.int64)
     key = (cells[:, 0] * dims[1] + cells[:, 1]) * dims[2] + cells[:, 2]
     if side is not None:
         key = key * 6 + side
-    _, first, index = np.unique(key, return_index=True, return_inverse=True)
-    return Grouping(index.reshape(-1), first, cells[first], None if side is None else side[first])
+    index, first = _first_seen(key)
+    return Grouping(index, first, cells[first], None if side is None else side[first])
+
+
+@numba.njit(cache=True)
+def _first_seen(key):
+    """Per key, the number of distinct keys seen before its first occurrence (an open-addressing table), and the
+    first position of each distinct key: ``(index (N,), first (G,))``."""
+    n = key.shape[0]
+    size = 16
+    while size < 2 * n:
+        size *= 2
+    slot_key = np.empty(size, dtype=np.int64)
+    slot_group = np.full(size, -1, dtype=np.int64)
+    index = np.empty(n, dtype=np.int64)
+    first = np.empty(n, dtype=np.int64)
+    groups = 0
+    for k in range(n):
+        slot = (key[k] * 0x2545F4914F6CDD1D) & (size - 1)
+        while slot_group[slot] >= 0 and slot_key[slot] != key[k]:
+            slot = (slot + 1) & (size - 1)
+        if slot_group[slot] < 0:
+            slot_key[slot] = key[k]
+            slot_group[slot] = groups
+            first[groups] = k
+            groups += 1
+        index[k] = slot_group[slot]
+    return index, first[:groups].copy()
 
 
 def merge(grouping, position, area, flux):
     """The :class:`Clusters` of the points (``position`` (N, 3), ``area`` (N,), ``flux`` (N, 3)) of ``grouping``."""
-    count = len(grouping)
-    weight = flux.sum(axis=1) + 1e-30 * area
-    norm = np.bincount(grouping.index, weight, count)
-    centre = np.stack([np.bincount(grouping.index, weight * position[:, c], count) for c in range(3)], axis=1)
-    total = np.stack([np.bincount(grouping.index, flux[:, c], count) for c in range(3)], axis=1)
-    return Clusters(np.ascontiguousarray(centre / norm[:, None]), np.ascontiguousarray(total),
-                    np.bincount(grouping.index, area, count), grouping.side)
+    centre, total, summed = _merge(grouping.index, len(grouping), position, area, flux)
+    return Clusters(centre, total, summed, grouping.side)
+
+
+@numba.njit(cache=True)
+def _merge(index, count, position, area, flux):
+    """Per group: the centroid weighted by total flux (by area where a group has none), flux and area summed."""
+    centre = np.zeros((count, 3))
+    total = np.zeros((count, 3))
+    summed = np.zeros(count)
+    norm = np.zeros(count)
+    for k in range(index.shape[0]):
+        g = index[k]
+        weight = flux[k, 0] + flux[k, 1] + flux[k, 2] + 1e-30 * area[k]
+        norm[g] += weight
+        summed[g] += area[k]
+        for c in range(3):
+            centre[g, c] += weight * position[k, c]
+            total[g, c] += flux[k, c]
+    for g in range(count):
+        for c in range(3):
+            centre[g, c] /= norm[g]
+    return centre, total, summed
 
 
 @numba.njit(inline="always")
@@ -511,15 +572,10 @@ class MultiscaleTransport(Transport):
                 kernel_hat = far_spectrum(radial, self.scales.split, *self._far_cap, h, fft_shape, reach)
                 SPECTRA.put(key, kernel_hat)
         with self.timings("deposit"):
-            grid = np.zeros((3,) + fft_shape, dtype=np.float32)
+            grid = np.zeros((3,) + tuple(int(n) for n in shape), dtype=np.float32)
             _deposit(position, flux, lo, h, grid)
         with self.timings("far_fft"):
-            spectrum = scipy.fft.rfftn(grid, axes=(1, 2, 3), workers=-1)
-            del grid
-            spectrum *= kernel_hat
-            field = scipy.fft.irfftn(spectrum, fft_shape, axes=(1, 2, 3), workers=-1, overwrite_x=True)
-        nx, ny, nz = shape
-        self._field = np.ascontiguousarray(field[:, :nx, :ny, :nz])
+            self._field = padded_convolution(grid, kernel_hat, fft_shape)
 
     def _middle_band(self, position, lo, hi):
         """The middle band summed at the corners of the voxels (side ``g``) that hold clusters."""
