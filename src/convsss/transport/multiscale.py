@@ -156,22 +156,31 @@ def _far_octant(h, shape, r_c, a, b, reach, r_scale, ds, table):
     return out
 
 
+def even_fast_len(n):
+    """The smallest length >= ``n`` that is even and fast for ``scipy.fft`` (:func:`far_spectrum` needs it even)."""
+    n = scipy.fft.next_fast_len(int(n), real=True)
+    while n % 2:
+        n = scipy.fft.next_fast_len(n + 1, real=True)
+    return n
+
+
 def far_spectrum(radial, r_c, a, b, h, fft_shape, reach):
-    """The spectrum (``rfftn``) of ``R_far`` (Eq. S2) on a zero-padded mesh of ``fft_shape`` (negative offsets
-    wrapped to the end) divided by the transfer function of the trilinear deposit and read-back, ``prod_axes
-    sinc^4(f)`` (``f`` in cycles per cell, each tent being ``sinc^2``), so that on average over where the samples and
-    the queries fall in their cells the mesh reproduces ``R_far`` rather than its blur. Per channel:
-    (3, nx, ny, nz // 2 + 1) complex64.
+    """The spectrum (``rfftn``) of ``R_far`` (Eq. S2) on a zero-padded mesh of ``fft_shape`` (every length even;
+    negative offsets wrapped to the end) divided by the transfer function of the trilinear deposit and read-back,
+    ``prod_axes sinc^4(f)`` (``f`` in cycles per cell, each tent being ``sinc^2``), so that on average over where the
+    samples and the queries fall in their cells the mesh reproduces ``R_far`` rather than its blur. Per channel:
+    (3, nx, ny, nz // 2 + 1) float32 (real: the kernel is even along every axis).
+
+    An even sequence's DFT of even length ``N`` is the type-I DCT of its first ``N/2 + 1`` entries, so the transform
+    runs on the kernel's first octant alone (1/8 of the mesh) and the spectrum is unfolded by ``X[N - k] = X[k]``.
     """
     half = [n // 2 + 1 for n in fft_shape]
     octant = _far_octant(h, np.array(half), r_c, a, b, reach, radial.r_scale, radial.ds, radial.values)
-    index = [np.minimum(np.arange(n), n - np.arange(n)) for n in fft_shape]
-    kernel = octant[:, index[0][:, None, None], index[1][None, :, None], index[2][None, None, :]]
-    spectrum = scipy.fft.rfftn(kernel, axes=(1, 2, 3), workers=-1)
-    window = [np.sinc(f) ** 4 for f in (scipy.fft.fftfreq(fft_shape[0]), scipy.fft.fftfreq(fft_shape[1]),
-                                         scipy.fft.rfftfreq(fft_shape[2]))]
-    spectrum /= window[0][:, None, None] * window[1][None, :, None] * window[2][None, None, :]
-    return spectrum.astype(np.complex64)
+    folded = scipy.fft.dctn(octant, type=1, axes=(1, 2, 3), workers=-1)
+    window = [np.sinc(np.arange(m) / n) ** 4 for m, n in zip(half, fft_shape)]  # even too: folded the same way
+    folded /= window[0][:, None, None] * window[1][None, :, None] * window[2][None, None, :]
+    index = [np.minimum(np.arange(n), n - np.arange(n)) for n in fft_shape[:2]]
+    return folded.astype(np.float32)[:, index[0][:, None], index[1][None, :], :]
 
 
 def padded_convolution(grid, kernel_hat, fft_shape):
@@ -559,9 +568,10 @@ class MultiscaleTransport(Transport):
         shape = np.ceil((hi + self.scales.split - lo) / h).astype(np.int64) + 2
         reach = far_reach(self.profile)
         pad = np.minimum(shape - 1, math.ceil(float(reach.max()) / h))
-        fft_shape = tuple(scipy.fft.next_fast_len(int(n + q), real=True) for n, q in zip(shape, pad))
-        # The grid, its spectrum, the kernel's spectrum and the convolved field: 4 x 3 channels x 4 bytes a cell.
-        check_memory(48 * int(np.prod(fft_shape)), "the multiscale far-field mesh and its spectra",
+        fft_shape = tuple(even_fast_len(n + q) for n, q in zip(shape, pad))
+        # The spectra of the grid (complex) and of the kernel (real), 3 channels, 4 bytes a number: at most 36 bytes
+        # per cell of the padded mesh (the grid and the field hold only the unpadded cells).
+        check_memory(36 * int(np.prod(fft_shape)), "the multiscale far-field mesh and its spectra",
                      "raise the transport's accuracy (a coarser mesh)", self.params["memory_limit"])
         self._mesh_origin, self.fft_shape = lo, fft_shape
         with self.timings("far_kernel"):
