@@ -106,6 +106,12 @@ def test_queries_off_the_surface_agree_with_the_exact_sum():
     assert _mean_rel(multi, exact) < 0.01
 
 
+def test_no_samples_give_no_exitance():
+    empty = IrradianceSamples(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    transport = make_transport("multiscale", empty, material("skin1").profile(), FRAME)
+    np.testing.assert_array_equal(transport.exitance(np.ones((2, 3))), 0.0)
+
+
 def test_memory_is_refused_before_allocating():
     samples = _lit_sphere(20.0, 2000)
     with pytest.raises(ConvsssError, match="multiscale far-field mesh"):

@@ -223,7 +223,9 @@ def _sheet_side(normal):
 
 @numba.njit(cache=True)
 def bounds(points):
-    """The lowest and highest coordinates of ``points`` (N >= 1, 3), each (3,)."""
+    """The lowest and highest coordinates of ``points`` (N, 3), each (3,); zeros for no points."""
+    if points.shape[0] == 0:
+        return np.zeros(3), np.zeros(3)
     lo, hi = points[0].copy(), points[0].copy()
     for k in range(1, points.shape[0]):
         for c in range(3):
