@@ -20,6 +20,13 @@ PROGRESS = click.option("--progress/--no-progress", default=True, show_default=T
 SEED = click.IntRange(0, 2**32 - 1)
 
 
+def _decorate(func, options):
+    """``func`` with the click ``options`` applied, the first listed shown first in ``--help``."""
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
 def output_stem(output):
     """``OUT`` from ``OUT``, ``OUT.exr`` or ``OUT.png``: the stem both images share."""
     path = Path(output)
@@ -46,9 +53,7 @@ def color_options(func):
                           "model you render with (--profile) so the render matches the colour; render and reference "
                           "must use the same. [default: dipole, the renderer's default]"),
     ]
-    for option in reversed(options):
-        func = option(func)
-    return func
+    return _decorate(func, options)
 
 
 def parse_triple(text, name):
@@ -130,9 +135,7 @@ def scene_source_options(func):
                           "whatever the thread count; reference: up to Mitsuba's float rounding, about 1e-7 "
                           "relative)."),
     ]
-    for option in reversed(options):
-        func = option(func)
-    return func
+    return _decorate(func, options)
 
 
 def source_inputs(scene_file, mesh):
@@ -165,9 +168,7 @@ def tonemap_options(func):
                      help="Key the Reinhard operator (scale and white point) on IMAGE, a linear EXR, instead of this "
                           "image: a render and its reference exposed alike."),
     ]
-    for option in reversed(options):
-        func = option(func)
-    return func
+    return _decorate(func, options)
 
 
 def exposure_anchor(exposure_from, tonemap):
