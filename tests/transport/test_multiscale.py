@@ -96,8 +96,8 @@ def test_converges_to_the_exact_sum_on_spheres_ten_times_apart(radius):
 
 
 def test_queries_off_the_surface_agree_with_the_exact_sum():
-    """Points 1 mm outside a sphere lie in no voxel of the middle band (it is summed where they are) but inside the
-    far-field mesh, which reaches r_c past the samples."""
+    """Points 1 mm outside a sphere lie in voxels of the middle band that hold no samples, and inside the far-field
+    mesh, which reaches r_c past the samples."""
     skin = material("skin1").profile()
     samples = _lit_sphere(10.0, 40000)
     points = samples.position[::97] * 1.1

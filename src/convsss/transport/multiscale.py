@@ -18,8 +18,8 @@ so that ``f - cap_r[f]`` is zero from ``r`` on and ``cap_r[f]`` is C^1:
   ``R_far`` on the mesh by 3-D FFTs (the layer mixing of Eq. 6 is itself a convolution along depth; zero-padded, so
   nothing wraps around) and read back trilinearly. The kernel's spectrum is divided by the transfer function of the
   deposit and the read-back (``sinc^4`` per axis), which removes their blur to second order.
-- **Middle band**: summed directly (through a cell list) at the corners of the voxels of side ``g`` that hold the
-  surface, and read back trilinearly: it is smooth at the scale ``r_1 > g``.
+- **Middle band**: summed directly (through a cell list) at the corners of the voxels of side ``g`` that the queries
+  fall in, each corner once, when first needed, and read back trilinearly: it is smooth at the scale ``r_1 > g``.
 - **Core**: summed directly at each query point over the samples within ``r_1``.
 
 Both direct sums run over *clusters*: the samples merged in cubes of side ``s`` for the core, those clusters merged
@@ -278,28 +278,38 @@ def group(cells, side):
     given, by side (:func:`sheet_side`), groups numbered in the order of their first point: a :class:`Grouping`.
     Grouping its ``cells // k`` again merges whole groups, as grouping the points in cubes ``k`` times as large
     would."""
-    dims = cells.max(axis=0) + 1 if len(cells) else np.ones(3, dtype=np.int64)
-    key = (cells[:, 0] * dims[1] + cells[:, 1]) * dims[2] + cells[:, 2]
-    if side is not None:
-        key = key * 6 + side
-    index, first = _first_seen(key)
+    index, first = _first_seen(_cube_keys(cells, np.zeros(len(cells), dtype=np.int64) if side is None else side))
     return Grouping(index, first, cells[first], None if side is None else side[first])
 
 
 @numba.njit(cache=True)
+def _cube_keys(cells, side):
+    """One int64 per (cube, side): ``((i dims[1] + j) dims[2] + m) 6 + side``, ``dims`` the cubes spanned."""
+    dims = np.ones(3, dtype=np.int64)
+    for k in range(cells.shape[0]):
+        for c in range(3):
+            dims[c] = max(dims[c], cells[k, c] + 1)
+    key = np.empty(cells.shape[0], dtype=np.int64)
+    for k in range(cells.shape[0]):
+        key[k] = ((cells[k, 0] * dims[1] + cells[k, 1]) * dims[2] + cells[k, 2]) * 6 + side[k]
+    return key
+
+
+@numba.njit(cache=True)
 def _first_seen(key):
-    """Per key, the number of distinct keys seen before its first occurrence (an open-addressing table), and the
-    first position of each distinct key: ``(index (N,), first (G,))``."""
+    """Per key, the number of distinct keys seen before its first occurrence (an open-addressing table, grown to stay
+    at most half full), and the first position of each distinct key: ``(index (N,), first (G,))``."""
     n = key.shape[0]
-    size = 16
-    while size < 2 * n:
-        size *= 2
+    size = 1024
     slot_key = np.empty(size, dtype=np.int64)
     slot_group = np.full(size, -1, dtype=np.int64)
     index = np.empty(n, dtype=np.int64)
     first = np.empty(n, dtype=np.int64)
     groups = 0
     for k in range(n):
+        if k > 0 and key[k] == key[k - 1]:  # neighbouring samples mostly share a cube
+            index[k] = index[k - 1]
+            continue
         slot = (key[k] * 0x2545F4914F6CDD1D) & (size - 1)
         while slot_group[slot] >= 0 and slot_key[slot] != key[k]:
             slot = (slot + 1) & (size - 1)
@@ -308,7 +318,20 @@ def _first_seen(key):
             slot_group[slot] = groups
             first[groups] = k
             groups += 1
-        index[k] = slot_group[slot]
+            if 2 * groups > size:
+                old_key, old_group = slot_key, slot_group
+                size *= 2
+                slot_key = np.empty(size, dtype=np.int64)
+                slot_group = np.full(size, -1, dtype=np.int64)
+                for s in range(old_key.shape[0]):
+                    if old_group[s] >= 0:
+                        slot = (old_key[s] * 0x2545F4914F6CDD1D) & (size - 1)
+                        while slot_group[slot] >= 0:
+                            slot = (slot + 1) & (size - 1)
+                        slot_key[slot], slot_group[slot] = old_key[s], old_group[s]
+            index[k] = groups - 1
+        else:
+            index[k] = slot_group[slot]
     return index, first[:groups].copy()
 
 
@@ -437,50 +460,90 @@ def _band_sum(view, position, flux, starts, origin, size, dims, table, r_c2, out
 
 
 @numba.njit(cache=True)
-def _voxel_keys(view, origin, size, dims):
-    """The key ``(i dims[1] + j) dims[2] + m`` of the voxel of side ``size`` holding each point (clamped)."""
-    keys = np.empty(view.shape[0], dtype=np.int64)
+def _voxel_set(view, origin, size, dims):
+    """The voxels of side ``size`` (keys ``(i dims[1] + j) dims[2] + m``) holding the points ``view`` (N, 3), all
+    inside the ``dims`` voxels from ``origin``: an open-addressing table (a power of two, at least twice as long as
+    N; -1 where empty)."""
+    length = 16
+    while length < 2 * view.shape[0]:
+        length *= 2
+    table = np.full(length, -1, dtype=np.int64)
     for k in range(view.shape[0]):
-        i = min(max(int(np.floor((view[k, 0] - origin[0]) / size)), 0), dims[0] - 1)
-        j = min(max(int(np.floor((view[k, 1] - origin[1]) / size)), 0), dims[1] - 1)
-        m = min(max(int(np.floor((view[k, 2] - origin[2]) / size)), 0), dims[2] - 1)
-        keys[k] = (i * dims[1] + j) * dims[2] + m
-    return keys
+        i = int(np.floor((view[k, 0] - origin[0]) / size))
+        j = int(np.floor((view[k, 1] - origin[1]) / size))
+        m = int(np.floor((view[k, 2] - origin[2]) / size))
+        key = (i * dims[1] + j) * dims[2] + m
+        slot = (key * 0x2545F4914F6CDD1D) & (length - 1)
+        while table[slot] >= 0 and table[slot] != key:
+            slot = (slot + 1) & (length - 1)
+        table[slot] = key
+    return table
 
 
-def voxel_corners(voxels, dims):
-    """The 8 corner keys (V, 8) of each voxel key, on the corner lattice of ``dims + 1`` points per axis."""
-    i, rest = np.divmod(voxels, dims[1] * dims[2])
-    j, m = np.divmod(rest, dims[2])
-    corners = np.empty((len(voxels), 8), dtype=np.int64)
-    for c in range(8):
-        di, dj, dm = c >> 2, (c >> 1) & 1, c & 1
-        corners[:, c] = ((i + di) * (dims[1] + 1) + (j + dj)) * (dims[2] + 1) + (m + dm)
-    return corners
-
-
-@numba.njit(parallel=True, cache=True)
-def _sparse_interpolate(view, origin, size, dims, voxels, corner_index, corner_value, out, found):
-    """``out[k] +=`` the trilinear interpolation of the corner values of the voxel holding ``view[k]``, where that
-    voxel is one of the sorted ``voxels``; ``found[k]`` says whether it was."""
-    for k in numba.prange(view.shape[0]):
-        u = (view[k, 0] - origin[0]) / size
-        v = (view[k, 1] - origin[1]) / size
-        w = (view[k, 2] - origin[2]) / size
-        i, j, m = int(np.floor(u)), int(np.floor(v)), int(np.floor(w))
+@numba.njit(cache=True)
+def _corner_slots(view, origin, size, dims, voxels, table_key, table_slot, count, new_keys):
+    """Per point of ``view`` (K, 3) in one of the ``voxels`` (:func:`_voxel_set`) of side ``size``, the slots of its
+    voxel's 8 corners, on the lattice of ``dims + 1`` corners per axis from ``origin``: found in the open-addressing
+    table (``table_key``, ``table_slot``, -1 where empty; room left for 8 K more) or added to it as slots
+    ``count, count + 1, ...``, their keys written to ``new_keys``; -1 for the other points. Returns (slots (K, 8),
+    the new count)."""
+    mask = table_key.shape[0] - 1
+    slots = np.full((view.shape[0], 8), -1, dtype=np.int64)
+    first = count
+    for k in range(view.shape[0]):
+        i = int(np.floor((view[k, 0] - origin[0]) / size))
+        j = int(np.floor((view[k, 1] - origin[1]) / size))
+        m = int(np.floor((view[k, 2] - origin[2]) / size))
         if i < 0 or j < 0 or m < 0 or i >= dims[0] or j >= dims[1] or m >= dims[2]:
             continue
         key = (i * dims[1] + j) * dims[2] + m
-        slot = np.searchsorted(voxels, key)
-        if slot >= voxels.shape[0] or voxels[slot] != key:
+        slot = (key * 0x2545F4914F6CDD1D) & (voxels.shape[0] - 1)
+        while voxels[slot] >= 0 and voxels[slot] != key:
+            slot = (slot + 1) & (voxels.shape[0] - 1)
+        if voxels[slot] < 0:
             continue
-        found[k] = True
-        fu, fv, fw = u - i, v - j, w - m
+        for c in range(8):
+            key = ((i + (c >> 2)) * (dims[1] + 1) + (j + ((c >> 1) & 1))) * (dims[2] + 1) + (m + (c & 1))
+            slot = (key * 0x2545F4914F6CDD1D) & mask
+            while table_slot[slot] >= 0 and table_key[slot] != key:
+                slot = (slot + 1) & mask
+            if table_slot[slot] < 0:
+                table_key[slot], table_slot[slot] = key, count
+                new_keys[count - first] = key
+                count += 1
+            slots[k, c] = table_slot[slot]
+    return slots, count
+
+
+@numba.njit(cache=True)
+def _rehash(table_key, table_slot, size):
+    """The open-addressing table (``table_key``, ``table_slot``) moved into one of ``size`` (a power of two)."""
+    mask = size - 1
+    keys = np.zeros(size, dtype=np.int64)
+    slots = np.full(size, -1, dtype=np.int64)
+    for s in range(table_key.shape[0]):
+        if table_slot[s] >= 0:
+            slot = (table_key[s] * 0x2545F4914F6CDD1D) & mask
+            while slots[slot] >= 0:
+                slot = (slot + 1) & mask
+            keys[slot], slots[slot] = table_key[s], table_slot[s]
+    return keys, slots
+
+
+@numba.njit(parallel=True, cache=True)
+def _corner_interpolate(view, origin, size, slots, values, out):
+    """``out[k] +=`` the trilinear interpolation at ``view[k]`` of the ``values`` at its voxel's corner ``slots``."""
+    for k in numba.prange(view.shape[0]):
+        if slots[k, 0] < 0:
+            continue
+        u = (view[k, 0] - origin[0]) / size
+        v = (view[k, 1] - origin[1]) / size
+        w = (view[k, 2] - origin[2]) / size
+        fu, fv, fw = u - np.floor(u), v - np.floor(v), w - np.floor(w)
         for c in range(8):
             wt = _corner(c, fu, fv, fw)[3]
-            corner = corner_index[slot, c]
             for ch in range(3):
-                out[k, ch] += wt * corner_value[corner, ch]
+                out[k, ch] += wt * values[slots[k, c], ch]
 
 
 class CellList:
@@ -504,6 +567,56 @@ class CellList:
         """``out += sum_j R(|x - x_j|) Phi_j`` at ``view`` (K, 3) for the band ``table`` of ``radius``."""
         _band_sum(view, self.position, self.flux, self.starts, self.origin, self.size, self.dims, table,
                   radius * radius, out)
+
+
+class BandCorners:
+    """The middle band where it is asked for: at a query in a voxel of side ``size`` that holds clusters, the
+    trilinear interpolation of the band at the voxel's corners (it is smooth at ``r_1``, larger than the voxels),
+    each corner summed through the band's ``cells`` the first time a query needs it and kept (queries lie on the
+    visible surface, a fraction of where the samples are, and neighbouring voxels share corners); at any other
+    query, the band summed where it is."""
+
+    #: Query points per call of the corner table (it keeps room for 8 new corners each).
+    CHUNK = 1 << 14
+
+    def __init__(self, cells, table, radius, clusters, lo, hi, size):
+        self.cells, self.table, self.radius, self.size = cells, table, radius, size
+        self.origin = lo - 0.5 * size
+        self.dims = np.ceil((hi + size - self.origin) / size).astype(np.int64) + 1
+        self._voxels = _voxel_set(clusters, self.origin, size, self.dims)
+        self.count = 0
+        self._key, self._slot = np.zeros(1, dtype=np.int64), np.full(1, -1, dtype=np.int64)
+        self._values = np.zeros((0, 3))
+
+    def add(self, view, out):
+        """``out +=`` the band at ``view`` (K, 3)."""
+        for start in range(0, len(view), self.CHUNK):
+            chunk = view[start:start + self.CHUNK]
+            self._reserve(self.count + 8 * len(chunk))
+            fresh = np.empty(8 * len(chunk), dtype=np.int64)
+            first = self.count
+            slots, self.count = _corner_slots(chunk, self.origin, self.size, self.dims, self._voxels, self._key,
+                                              self._slot, first, fresh)
+            i, rest = np.divmod(fresh[:self.count - first], (self.dims[1] + 1) * (self.dims[2] + 1))
+            j, m = np.divmod(rest, self.dims[2] + 1)
+            corners = self.origin + self.size * np.stack([i, j, m], axis=1).astype(np.float64)
+            self.cells.add_sum(corners, self.table, self.radius, self._values[first:self.count])
+            _corner_interpolate(chunk, self.origin, self.size, slots, self._values, out[start:start + self.CHUNK])
+            direct = np.flatnonzero(slots[:, 0] < 0)
+            if len(direct):
+                band = np.zeros((len(direct), 3))
+                self.cells.add_sum(np.ascontiguousarray(chunk[direct]), self.table, self.radius, band)
+                out[start + direct] += band
+
+    def _reserve(self, corners):
+        """Room for ``corners`` in the table (at most half full) and the values."""
+        if 2 * corners <= len(self._key):
+            return
+        size = 1 << (2 * corners - 1).bit_length()
+        self._key, self._slot = _rehash(self._key, self._slot, size)
+        values = np.zeros((size // 2, 3))
+        values[:self.count] = self._values[:self.count]
+        self._values = values
 
 
 class MultiscaleTransport(Transport):
@@ -544,7 +657,9 @@ class MultiscaleTransport(Transport):
             self._core_cells = CellList(fine.centre, fine.flux, lo, sc.core)
             self._band_cells = CellList(coarse.centre, coarse.flux, lo, sc.split)
         self._far_field(fine.centre, fine.flux, lo, hi)
-        self._middle_band(fine.centre, lo, hi)
+        with self.timings("band"):
+            self._band_corners = BandCorners(self._band_cells, self._band, sc.split, fine.centre, lo, hi,
+                                             sc.voxel)
 
     def _relit(self, samples):
         """The same places and clusters with the new samples' flux: only :meth:`_build` runs again."""
@@ -589,23 +704,6 @@ class MultiscaleTransport(Transport):
         with self.timings("far_fft"):
             self._field = padded_convolution(grid, kernel_hat, fft_shape)
 
-    def _middle_band(self, position, lo, hi):
-        """The middle band summed at the corners of the voxels (side ``g``) that hold clusters."""
-        g = self.scales.voxel
-        self._voxel_origin = lo - 0.5 * g
-        self._voxel_dims = np.ceil((hi + g - self._voxel_origin) / g).astype(np.int64) + 1
-        with self.timings("band_corners"):
-            self._voxels = np.unique(_voxel_keys(position, self._voxel_origin, g, self._voxel_dims))
-            corners, self._corner_index = np.unique(voxel_corners(self._voxels, self._voxel_dims),
-                                                    return_inverse=True)
-            self._corner_index = np.ascontiguousarray(self._corner_index.reshape(-1, 8))
-            d = self._voxel_dims + 1
-            i, rest = np.divmod(corners, d[1] * d[2])
-            j, m = np.divmod(rest, d[2])
-            points = self._voxel_origin + g * np.stack([i, j, m], axis=1).astype(np.float64)
-            self._corner_value = np.zeros((len(corners), 3))
-            self._band_cells.add_sum(points, self._band, self.scales.split, self._corner_value)
-
     @property
     def query_batch(self):
         """Query points per call (each sums the clusters within ``r_1``)."""
@@ -616,15 +714,8 @@ class MultiscaleTransport(Transport):
         out = np.zeros((len(points), 3))
         with self.timings("far_lookup"):
             _interpolate(view, self._mesh_origin, self.scales.mesh, self._field, out)
-        with self.timings("band_lookup"):
-            found = np.zeros(len(points), dtype=np.bool_)
-            _sparse_interpolate(view, self._voxel_origin, self.scales.voxel, self._voxel_dims, self._voxels,
-                                self._corner_index, self._corner_value, out, found)
-            lost = np.flatnonzero(~found)
-            if len(lost):  # queries off the sampled surface: the band summed where they are
-                extra = np.zeros((len(lost), 3))
-                self._band_cells.add_sum(np.ascontiguousarray(view[lost]), self._band, self.scales.split, extra)
-                out[lost] += extra
+        with self.timings("band"):
+            self._band_corners.add(view, out)
         with self.timings("core_sum"):
             self._core_cells.add_sum(view, self._core, self.scales.core, out)
         return np.maximum(out, 0.0)
@@ -633,7 +724,7 @@ class MultiscaleTransport(Transport):
     def stats(self):
         """The base stats plus the lengths chosen, the cluster count and the far-field FFT shape."""
         return {**super().stats, "scales_mm": dict(vars(self.scales)), "clusters": self.clusters,
-                "voxels": len(self._voxels), "fft_shape": list(self.fft_shape)}
+                "band_corners": self._band_corners.count, "fft_shape": list(self.fft_shape)}
 
 
 register_transport(MultiscaleTransport)
