@@ -38,6 +38,7 @@ import numba
 import numpy as np
 
 from ..backend import load_mitsuba
+from ..hashtable import capacity, empty, probe
 from .mis import power_heuristic
 
 mi = load_mitsuba()
@@ -315,14 +316,9 @@ def stratified_directions(points, owners, spacing, seed, strata=4):
 @numba.njit(cache=True)
 def _voxel_ranks(points, owners, spacing):
     """Per path, a hash of the voxel of edge ``spacing`` its point falls in (collisions merge voxels) and the number
-    of earlier paths with the same hash (counted in an open-addressing table)."""
+    of earlier paths with the same hash (counted in a :mod:`~convsss.hashtable`)."""
     n = owners.shape[0]
-    size = 16
-    while size < 2 * n:
-        size *= 2
-    slot_key = np.empty(size, dtype=np.int64)
-    slot_count = np.zeros(size, dtype=np.int64)
-    used = np.zeros(size, dtype=np.bool_)
+    keys, counts = empty(capacity(n))
     key = np.empty(n, dtype=np.int64)
     rank = np.empty(n, dtype=np.int64)
     for k in range(n):
@@ -331,13 +327,11 @@ def _voxel_ranks(points, owners, spacing):
         j = np.int64(np.floor(points[p, 1] / spacing))
         m = np.int64(np.floor(points[p, 2] / spacing))
         key[k] = (i * 73856093) ^ (j * 19349663) ^ (m * 83492791)
-        slot = (key[k] * 0x2545F491) & (size - 1)
-        while used[slot] and slot_key[slot] != key[k]:
-            slot = (slot + 1) & (size - 1)
-        used[slot] = True
-        slot_key[slot] = key[k]
-        rank[k] = slot_count[slot]
-        slot_count[slot] += 1
+        slot = probe(keys, counts, key[k])
+        if counts[slot] < 0:
+            keys[slot], counts[slot] = key[k], 0
+        rank[k] = counts[slot]
+        counts[slot] += 1
     return key, rank
 
 

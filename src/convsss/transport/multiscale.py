@@ -44,6 +44,7 @@ import numpy as np
 import scipy.fft
 
 from ..errors import ConvsssError
+from ..hashtable import capacity, empty, grown, probe
 from ..memory import check_memory
 from ..parameters import Parameter
 from ..timing import StageTimer
@@ -301,12 +302,10 @@ def _cube_keys(cells, side):
 
 @numba.njit(cache=True)
 def _first_seen(key):
-    """Per key, the number of distinct keys seen before its first occurrence (an open-addressing table, grown to stay
-    at most half full), and the first position of each distinct key: ``(index (N,), first (G,))``."""
+    """Per key, the number of distinct keys seen before its first occurrence (a :mod:`~convsss.hashtable` grown to
+    stay at most half full), and the first position of each distinct key: ``(index (N,), first (G,))``."""
     n = key.shape[0]
-    size = 1024
-    slot_key = np.empty(size, dtype=np.int64)
-    slot_group = np.full(size, -1, dtype=np.int64)
+    keys, values = empty(1024)
     index = np.empty(n, dtype=np.int64)
     first = np.empty(n, dtype=np.int64)
     groups = 0
@@ -314,28 +313,14 @@ def _first_seen(key):
         if k > 0 and key[k] == key[k - 1]:  # neighbouring samples mostly share a cube
             index[k] = index[k - 1]
             continue
-        slot = (key[k] * 0x2545F4914F6CDD1D) & (size - 1)
-        while slot_group[slot] >= 0 and slot_key[slot] != key[k]:
-            slot = (slot + 1) & (size - 1)
-        if slot_group[slot] < 0:
-            slot_key[slot] = key[k]
-            slot_group[slot] = groups
+        slot = probe(keys, values, key[k])
+        if values[slot] < 0:
+            keys[slot], values[slot] = key[k], groups
             first[groups] = k
             groups += 1
-            if 2 * groups > size:
-                old_key, old_group = slot_key, slot_group
-                size *= 2
-                slot_key = np.empty(size, dtype=np.int64)
-                slot_group = np.full(size, -1, dtype=np.int64)
-                for s in range(old_key.shape[0]):
-                    if old_group[s] >= 0:
-                        slot = (old_key[s] * 0x2545F4914F6CDD1D) & (size - 1)
-                        while slot_group[slot] >= 0:
-                            slot = (slot + 1) & (size - 1)
-                        slot_key[slot], slot_group[slot] = old_key[s], old_group[s]
-            index[k] = groups - 1
-        else:
-            index[k] = slot_group[slot]
+        index[k] = values[slot]
+        if 2 * groups > keys.shape[0]:
+            keys, values = grown(keys, values, 2 * keys.shape[0])
     return index, first[:groups].copy()
 
 
@@ -484,32 +469,24 @@ def _band_sum(view, position, flux, starts, origin, size, dims, reach, table, r_
 @numba.njit(cache=True)
 def _voxel_set(view, origin, size, dims):
     """The voxels of side ``size`` (keys ``(i dims[1] + j) dims[2] + m``) holding the points ``view`` (N, 3), all
-    inside the ``dims`` voxels from ``origin``: an open-addressing table (a power of two, at least twice as long as
-    N; -1 where empty)."""
-    length = 16
-    while length < 2 * view.shape[0]:
-        length *= 2
-    table = np.full(length, -1, dtype=np.int64)
+    inside the ``dims`` voxels from ``origin``: a :mod:`~convsss.hashtable` ``(keys, values)``, values 0 where held."""
+    keys, values = empty(capacity(view.shape[0]))
     for k in range(view.shape[0]):
         i = int(np.floor((view[k, 0] - origin[0]) / size))
         j = int(np.floor((view[k, 1] - origin[1]) / size))
         m = int(np.floor((view[k, 2] - origin[2]) / size))
         key = (i * dims[1] + j) * dims[2] + m
-        slot = (key * 0x2545F4914F6CDD1D) & (length - 1)
-        while table[slot] >= 0 and table[slot] != key:
-            slot = (slot + 1) & (length - 1)
-        table[slot] = key
-    return table
+        slot = probe(keys, values, key)
+        keys[slot], values[slot] = key, 0
+    return keys, values
 
 
 @numba.njit(cache=True)
-def _corner_slots(view, origin, size, dims, voxels, table_key, table_slot, count, new_keys):
+def _corner_slots(view, origin, size, dims, voxels, table, count, new_keys):
     """Per point of ``view`` (K, 3) in one of the ``voxels`` (:func:`_voxel_set`) of side ``size``, the slots of its
-    voxel's 8 corners, on the lattice of ``dims + 1`` corners per axis from ``origin``: found in the open-addressing
-    table (``table_key``, ``table_slot``, -1 where empty; room left for 8 K more) or added to it as slots
-    ``count, count + 1, ...``, their keys written to ``new_keys``; -1 for the other points. Returns (slots (K, 8),
-    the new count)."""
-    mask = table_key.shape[0] - 1
+    voxel's 8 corners, on the lattice of ``dims + 1`` corners per axis from ``origin``: found in the corner ``table``
+    (a :mod:`~convsss.hashtable`, room left for 8 K more) or added to it as slots ``count, count + 1, ...``, their
+    keys written to ``new_keys``; -1 for the other points. Returns (slots (K, 8), the new count)."""
     slots = np.full((view.shape[0], 8), -1, dtype=np.int64)
     first = count
     for k in range(view.shape[0]):
@@ -518,38 +495,17 @@ def _corner_slots(view, origin, size, dims, voxels, table_key, table_slot, count
         m = int(np.floor((view[k, 2] - origin[2]) / size))
         if i < 0 or j < 0 or m < 0 or i >= dims[0] or j >= dims[1] or m >= dims[2]:
             continue
-        key = (i * dims[1] + j) * dims[2] + m
-        slot = (key * 0x2545F4914F6CDD1D) & (voxels.shape[0] - 1)
-        while voxels[slot] >= 0 and voxels[slot] != key:
-            slot = (slot + 1) & (voxels.shape[0] - 1)
-        if voxels[slot] < 0:
+        if voxels[1][probe(voxels[0], voxels[1], (i * dims[1] + j) * dims[2] + m)] < 0:
             continue
         for c in range(8):
             key = ((i + (c >> 2)) * (dims[1] + 1) + (j + ((c >> 1) & 1))) * (dims[2] + 1) + (m + (c & 1))
-            slot = (key * 0x2545F4914F6CDD1D) & mask
-            while table_slot[slot] >= 0 and table_key[slot] != key:
-                slot = (slot + 1) & mask
-            if table_slot[slot] < 0:
-                table_key[slot], table_slot[slot] = key, count
+            slot = probe(table[0], table[1], key)
+            if table[1][slot] < 0:
+                table[0][slot], table[1][slot] = key, count
                 new_keys[count - first] = key
                 count += 1
-            slots[k, c] = table_slot[slot]
+            slots[k, c] = table[1][slot]
     return slots, count
-
-
-@numba.njit(cache=True)
-def _rehash(table_key, table_slot, size):
-    """The open-addressing table (``table_key``, ``table_slot``) moved into one of ``size`` (a power of two)."""
-    mask = size - 1
-    keys = np.zeros(size, dtype=np.int64)
-    slots = np.full(size, -1, dtype=np.int64)
-    for s in range(table_key.shape[0]):
-        if table_slot[s] >= 0:
-            slot = (table_key[s] * 0x2545F4914F6CDD1D) & mask
-            while slots[slot] >= 0:
-                slot = (slot + 1) & mask
-            keys[slot], slots[slot] = table_key[s], table_slot[s]
-    return keys, slots
 
 
 @numba.njit(parallel=True, cache=True)
@@ -610,7 +566,7 @@ class BandCorners:
         self.dims = np.ceil((hi + size - self.origin) / size).astype(np.int64) + 1
         self._voxels = _voxel_set(clusters, self.origin, size, self.dims)
         self.count = 0
-        self._key, self._slot = np.zeros(1, dtype=np.int64), np.full(1, -1, dtype=np.int64)
+        self._table = empty(1)
         self._values = np.zeros((0, 3))
 
     def add(self, view, out):
@@ -620,8 +576,8 @@ class BandCorners:
             self._reserve(self.count + 8 * len(chunk))
             fresh = np.empty(8 * len(chunk), dtype=np.int64)
             first = self.count
-            slots, self.count = _corner_slots(chunk, self.origin, self.size, self.dims, self._voxels, self._key,
-                                              self._slot, first, fresh)
+            slots, self.count = _corner_slots(chunk, self.origin, self.size, self.dims, self._voxels, self._table,
+                                              first, fresh)
             i, rest = np.divmod(fresh[:self.count - first], (self.dims[1] + 1) * (self.dims[2] + 1))
             j, m = np.divmod(rest, self.dims[2] + 1)
             corners = self.origin + self.size * np.stack([i, j, m], axis=1).astype(np.float64)
@@ -635,10 +591,10 @@ class BandCorners:
 
     def _reserve(self, corners):
         """Room for ``corners`` in the table (at most half full) and the values."""
-        if 2 * corners <= len(self._key):
+        if 2 * corners <= len(self._table[0]):
             return
         size = 1 << (2 * corners - 1).bit_length()
-        self._key, self._slot = _rehash(self._key, self._slot, size)
+        self._table = grown(*self._table, size)
         values = np.zeros((size // 2, 3))
         values[:self.count] = self._values[:self.count]
         self._values = values
