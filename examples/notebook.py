@@ -96,16 +96,18 @@ print(sphere["name"], "samples", sphere["samples"], "mean free paths across", np
 # %% [markdown]
 # ## Change the material, keep the rest
 # `prepare()` builds the samples, their irradiance and the transports and keeps them in `integrator.prepared`;
-# `render_prepared()` shades. A new material of the same index of refraction needs only the transports built again
-# (`retransport`, paper Eq. 1) and the shading: the irradiance (Eq. 2) depends on the material through Fresnel's
-# `F_t(eta)` only.
+# `render_prepared()` shades. A new material of the same index of refraction and reduced albedo needs only the
+# transports built again (`retransport`, paper Eq. 1) and the shading: the irradiance (Eq. 2) depends on the material
+# through Fresnel's `F_t(eta)` and the albedo's oblique-incidence gain only. Scaling every coefficient keeps the
+# albedo and the colour and sets the mean free path.
 
 # %%
 integrator.prepare(scene, scene.sensors()[0], seed=0)
 obj = integrator.prepared.objects[0]
 means = {}
 for mfp in (0.5, 2.0, 8.0):  # the same colour, light travelling farther and farther
-    new = convsss.Material.from_color([0.9, 0.7, 0.5], mfp, eta=obj.eta)
+    k = obj.material.mfp_mm / mfp  # per channel: sigma_t' = 1 / mfp
+    new = replace(obj.material, sigma_s_prime=obj.material.sigma_s_prime * k, sigma_a=obj.material.sigma_a * k)
     integrator.retransport(objects=[replace(obj, material=new, profile=new.profile())])
     edited = np.asarray(integrator.render_prepared())[..., :3]
     mi.util.write_bitmap(str(OUT / f"mfp-{mfp:g}mm.png"), edited)

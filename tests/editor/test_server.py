@@ -36,7 +36,7 @@ def test_page_state_update_and_images(editor_server):
     assert status == 200 and kind == "image/png" and image[:4] == b"\x89PNG"
     status, _, body = _request(editor_server, "POST", "/api/update", {"sigma_a": [0.2, 0.2, 0.2]})
     new = json.loads(body)
-    assert status == 200 and new["version"] == state["version"] + 1 and new["last"]["rebuilt"] == "transport"
+    assert status == 200 and new["version"] == state["version"] + 1 and new["last"]["rebuilt"] == "prepare"
     assert _request(editor_server, "GET", "/image.png")[2] != image
     assert _request(editor_server, "GET", "/profile.png")[2][:4] == b"\x89PNG"
 

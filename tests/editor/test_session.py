@@ -7,7 +7,7 @@ from convsss.errors import ConvsssError
 
 
 def test_new_coefficients_rebuild_the_transport_on_the_same_samples(session):
-    s = session()
+    s = session(incidence="normal")
     prepared = s.integrator.prepared
     samples, irradiance, transports = prepared.samples, prepared.irradiance, list(prepared.transports)
     before, version = s.image.copy(), s.version
@@ -28,7 +28,7 @@ def test_new_coefficients_rebuild_the_transport_on_the_same_samples(session):
 
 
 def test_model_accuracy_and_colour_rebuild_the_transport_only(session):
-    s = session()
+    s = session(incidence="normal")
     samples = s.integrator.prepared.samples
     assert s.update(model="better-dipole")["last"]["rebuilt"] == "transport"
     assert type(s.integrator.prepared.transports[0].profile).__name__ == "BetterDipoleProfile"
@@ -41,6 +41,28 @@ def test_model_accuracy_and_colour_rebuild_the_transport_only(session):
     assert s.integrator.prepared.samples is samples
     assert s.update(model="better-dipole")["last"]["rebuilt"] == "transport"  # same as before: nothing new...
     assert s.version == 4  # ...so no render
+
+
+def test_a_new_albedo_prepares_again_with_oblique_incidence(session):
+    """With incidence = oblique (the default) the samples' irradiance carries the albedo's gain: a new albedo needs
+    new irradiance; a new model or accuracy does not."""
+    s = session()
+    samples = s.integrator.prepared.samples
+    assert s.update(model="better-dipole")["last"]["rebuilt"] == "transport"
+    assert s.integrator.prepared.samples is samples
+    state = s.update(sigma_a=[0.3, 0.3, 0.3])
+    assert state["last"]["rebuilt"] == "prepare" and s.integrator.prepared.samples is not samples
+    assert s.integrator.prepared.transports[0].profile.sigma_a.tolist() == pytest.approx([0.3, 0.3, 0.3])
+
+
+def test_retransport_refuses_a_new_albedo_with_oblique_incidence(session):
+    from dataclasses import replace
+
+    s = session()
+    obj = s.integrator.prepared.objects[0]
+    material = replace(obj.material, sigma_a=obj.material.sigma_a * 2)
+    with pytest.raises(ConvsssError, match="albedo"):
+        s.integrator.retransport([replace(obj, material=material, profile=material.profile())])
 
 
 def test_eta_prepares_again_and_is_refused_on_a_null_boundary(session):
@@ -67,7 +89,7 @@ def test_bad_edits_change_nothing(session):
 
 
 def test_a_preset_and_the_profile_plot(session):
-    s = session()
+    s = session(incidence="normal")
     state = s.update(preset="marble")
     assert state["material"]["name"] == "Marble" and state["last"]["rebuilt"] == "transport"  # null boundary: eta 1
     assert s.profile_png()[:8] == b"\x89PNG\r\n\x1a\n" and s.image_png()[:4] == b"\x89PNG"

@@ -91,7 +91,8 @@ def test_irradiance_is_the_point_lights_cosine_over_r2(mi, sphere_scene):
     import drjit as dr
 
     scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=4,
-                                            integrator={"aovs": "irradiance,mask", "indirect_samples": 0}))
+                                            integrator={"aovs": "irradiance,mask", "indirect_samples": 0,
+                                                                        "incidence": "normal"}))
     aov = _layers(image, ["irradiance.R", "irradiance.G", "irradiance.B", "mask.Y"])
     y, x = np.mgrid[0:32, 0:32]
     ray, _ = scene.sensors()[0].sample_ray(0.0, 0.5, mi.Point2f(((x.ravel() + 0.5) / 32).astype(np.float32),

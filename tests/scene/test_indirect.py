@@ -41,7 +41,7 @@ def test_indirect_light_in_a_spherical_room_is_the_radiosity_series(room, max_de
     dA / (4 pi R^2), so after n bounces of a point light's flux 4 pi I the mean irradiance over a small object at the
     centre is rho^n I / R^2 (Eq. 2, null boundary); a path of max_depth segments brings max_depth - 2 bounces.
     Direct light: a point light at distance d irradiates a small sphere by I / (4 d^2) on average."""
-    scene = room({"indirect_samples": 16, "max_depth": max_depth})
+    scene = room({"indirect_samples": 16, "max_depth": max_depth, "incidence": "normal"})
     obj = scene.integrator().stats["objects"][0]
     area = 4 * np.pi
     expected = 400 / 50**2 * sum(0.5**n for n in range(1, bounces + 1))
@@ -50,6 +50,22 @@ def test_indirect_light_in_a_spherical_room_is_the_radiosity_series(room, max_de
     np.testing.assert_allclose(np.array(obj["flux_indirect"]) / area, expected, rtol=0.02)
     np.testing.assert_allclose(np.array(obj["flux_direct"]) / area, 400 / (4 * 20**2), rtol=0.01)
     np.testing.assert_allclose(obj["flux"], np.add(obj["flux_direct"], obj["flux_indirect"]))
+
+
+def test_oblique_incidence_scales_both_by_the_cosine_weighted_gain(room):
+    """The room's light is uniform over directions and the point light's cosines on the small sphere are uniform on
+    its lit half: with incidence = oblique both fluxes gain 2 ∫ mu g(mu) dmu per channel (Eq. O1, skin1's albedo)."""
+    from convsss.profiles.incidence import gain
+
+    scene = room({"indirect_samples": 16, "max_depth": 3})
+    obj = scene.integrator().stats["objects"][0]
+    x, w = np.polynomial.legendre.leggauss(64)
+    mu, w = 0.5 * (x + 1.0), 0.5 * w
+    mean_gain = 2.0 * np.sum((w * mu)[:, None] * gain(convsss.material("skin1").albedo_prime, 1.0, mu), axis=0)
+    assert np.all(mean_gain > 1.05)
+    area = 4 * np.pi
+    np.testing.assert_allclose(np.array(obj["flux_indirect"]) / area, 400 / 50**2 * 0.5 * mean_gain, rtol=0.02)
+    np.testing.assert_allclose(np.array(obj["flux_direct"]) / area, 400 / (4 * 20**2) * mean_gain, rtol=0.01)
 
 
 def test_no_indirect_light_when_asked_for_none_or_paths_too_short(room):

@@ -193,3 +193,37 @@ def test_mesh_points_are_stratified_in_space(mi, irr, monkeypatch):
                              for s in range(4)])
     share = np.bincount(octant(points), minlength=8) / len(points)
     np.testing.assert_allclose(share, expected, atol=0.004)
+
+
+@pytest.mark.parametrize("eta", [1.0, 1.4])
+def test_oblique_incidence_weights_each_direction_by_its_gain(mi, irr, eta):
+    """With the medium's albedo, a point light's irradiance is F_t cos I / r^2 times the gain of Eq. O1 per channel."""
+    from convsss.profiles.incidence import gain
+
+    light = {"type": "point", "position": [0, 0, 5], "intensity": {"type": "rgb", "value": [25, 25, 25]}}
+    scene = mi.load_dict({"type": "scene", "s": {"type": "sphere"}, "l": light})
+    p, n, _, pts = _points(irr, scene)
+    albedo = np.array([0.99, 0.8, 0.3])
+    e = irr.surface_irradiance(scene, p, n, eta, 4, seed=0, albedo=albedo)
+    d = np.array([0, 0, 5.0]) - pts
+    r = np.linalg.norm(d, axis=1)
+    cos = np.clip(np.einsum("ij,ij->i", pts, d) / r, 0, None)
+    expected = (25 * cos / r**2 * fresnel_transmittance(eta, cos))[:, None] * gain(albedo, eta, cos)
+    np.testing.assert_allclose(e, expected, rtol=1e-4, atol=2e-5)
+    lit = (cos > 0) & (cos < 0.9)
+    assert np.all(e[lit, 2] > e[lit, 0])
+
+
+def test_oblique_incidence_weights_indirect_paths(mi, irr):
+    """Uniform radiance through an index-matched boundary: E = pi L times the cosine-weighted mean of the gain."""
+    from convsss.profiles.incidence import gain
+
+    scene = mi.load_dict({"type": "scene", "s": {"type": "sphere"}})
+    p, n, size, _ = _points(irr, scene, 4096)
+    albedo = np.array([0.9, 0.5, 0.1])
+    incident, _ = _uniform_incident([1.0, 1.0, 1.0])
+    e = irr.indirect_irradiance(incident, p, n, np.full(size, 4 * np.pi / size), 1.0, 4, seed=0, albedo=albedo)
+    x, w = np.polynomial.legendre.leggauss(64)
+    mu, w = 0.5 * (x + 1.0), 0.5 * w
+    mean_gain = 2.0 * np.sum((w * mu)[:, None] * gain(albedo, 1.0, mu), axis=0)
+    np.testing.assert_allclose(e.mean(axis=0), np.pi * mean_gain, rtol=0.01)

@@ -2,7 +2,8 @@
 
 A light tracer of the very medium Mitsuba's ``volpathmis`` renders (a homogeneous, isotropically scattering medium
 with the reduced coefficients, behind a smooth dielectric of relative index ``eta``): each photon enters at the
-origin along the inward normal carrying the transmitted flux (Eq. 2's ``F_t(eta, w_i)`` is outside the profile),
+origin along the inward normal (or at a slant: :mod:`~convsss.profiles.incidence`) carrying the transmitted flux
+(Eq. 2's ``F_t(eta, w_i)`` is outside the profile),
 flies exponential distances, scatters isotropically with weight ``alpha'`` per collision (Russian roulette below
 1 %), and at the boundary is reflected with the Fresnel probability ``F_r(1/eta, cos)`` or leaves; a photon that
 leaves is tallied at its radius (the radial exitance histogram). Optical units (``sigma_t' = 1``) inside, so one
@@ -50,9 +51,9 @@ def _next(state):
 
 
 @numba.njit(parallel=True, fastmath=False, cache=True)
-def _walk(photons, chunks, albedo, fresnel, depth_max, edges, seed):
-    """Per chunk: (weight, weight^2, single-scattered weight) per radial bin (last bin: past the edges), and the
-    weight lost through the bottom."""
+def _walk(photons, chunks, albedo, fresnel, depth_max, edges, seed, incidence):
+    """Photons enter at the origin at cosine ``incidence`` to the inward normal. Per chunk: (weight, weight^2,
+    single-scattered weight) per radial bin (last bin: past the edges), and the weight lost through the bottom."""
     n_bins = len(edges)
     hist = np.zeros((chunks, 3, n_bins))
     lost = np.zeros(chunks)
@@ -67,8 +68,9 @@ def _walk(photons, chunks, albedo, fresnel, depth_max, edges, seed):
             # each photon's stream starts at a hash of (seed, photon): streams are independent of the thread count
             state = _mix(_mix(np.uint64(seed) + np.uint64(0x5851F42D4C957F2D)) + np.uint64(i))
             x = y = z = 0.0
-            ux = uy = 0.0
-            uz = 1.0
+            ux = np.sqrt(max(0.0, 1.0 - incidence * incidence))
+            uy = 0.0
+            uz = incidence
             w = 1.0
             scatters = 0
             while True:
@@ -136,7 +138,7 @@ def slab_extent(albedo):
     return reach, reach
 
 
-def slab_tally(albedo, eta, photons=1 << 20, seed=0):
+def slab_tally(albedo, eta, photons=1 << 20, seed=0, incidence=1.0):
     """Radial exitance of a semi-infinite slab of reduced albedo ``albedo`` and index ``eta`` (optical units).
 
     Parameters
@@ -149,6 +151,10 @@ def slab_tally(albedo, eta, photons=1 << 20, seed=0):
         Photons traced (each enters with the transmitted flux 1).
     seed : int
         The same seed gives the same tally, whatever the thread count.
+    incidence : float
+        Cosine of the beam's direction inside the medium to the inward normal (1: normal incidence, the profiles';
+        below 1 the exits are no longer radially symmetric and only the totals are of use:
+        :mod:`convsss.profiles.incidence`).
 
     Returns
     -------
@@ -163,13 +169,16 @@ def slab_tally(albedo, eta, photons=1 << 20, seed=0):
         raise ConvsssError(f"albedo={albedo!r} is not allowed: it must lie in [0, 1]")
     eta = check_eta(eta)
     photons = int(photons)
+    incidence = float(incidence)
+    if not 0.0 < incidence <= 1.0:
+        raise ConvsssError(f"incidence={incidence!r} is not allowed: it must lie in (0, 1]")
     if photons < 1:
         raise ConvsssError(f"photons={photons!r} is not allowed: it must be >= 1")
     depth_max, r_max = slab_extent(albedo)
     edges = radial_edges(r_max)
     fresnel = fresnel_reflectance(1.0 / eta, np.linspace(0.0, 1.0, FRESNEL_TABLE))
     chunks = 64
-    hist, lost = _walk(photons, chunks, albedo, fresnel, depth_max, edges, int(seed))
+    hist, lost = _walk(photons, chunks, albedo, fresnel, depth_max, edges, int(seed), incidence)
     weight, square, single = hist.sum(axis=0)
     # Per-photon variance from the per-bin sums of w and w^2 (each photon lands in at most one bin).
     n = float(photons)
@@ -180,7 +189,7 @@ def slab_tally(albedo, eta, photons=1 << 20, seed=0):
     escaped = weight.sum() / n
     escaped_var = max(square.sum() / n - escaped**2, 0.0) / n
     return {
-        "albedo": albedo, "eta": eta, "photons": photons, "seed": int(seed),
+        "albedo": albedo, "eta": eta, "photons": photons, "seed": int(seed), "incidence": incidence,
         "edges": edges,
         "profile": mean / area / t_d,
         "stderr": np.sqrt(var) / area / t_d,

@@ -203,7 +203,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                          "lower sample_density, or use downsample 0.5 or 0.25")
             self._check_irradiance_time(scene, count, obj.name)
             direct.append(object_samples(scene, obj, count, p.irradiance_samples, p.unit_mm, _seed(seed), stream=k,
-                                         stage=stage))
+                                         stage=stage, oblique=p.incidence == "oblique"))
             cells.append(cell_full)
             per_object.append({**obj.summary(), "samples": count, "cell_size_mm": cell, "pixel_footprint_mm": cell_full,
                                "view_depth_mm": depth, "samples_pixel_rule": count_pixel,
@@ -256,7 +256,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                 normal = mi.Vector3f(*np.ascontiguousarray(s.normal.T, dtype=np.float32))
                 indirect.append(indirect_irradiance(tracer.incident, position, normal, s.area / p.unit_mm**2, obj.eta,
                                                     p.indirect_samples, seed + 104729 * (k + 1),
-                                                    stop=self.should_stop))
+                                                    stop=self.should_stop,
+                                                    albedo=obj.material.albedo_prime if p.incidence == "oblique" else None))
                 deferred.append(tracer.deferred)
                 tracer.deferred = []
         return indirect, deferred, tracer
@@ -297,15 +298,17 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         and the screen's exitance, for new ``objects`` and/or new ``params``; returns the new :class:`Shader`.
 
         The geometry, the samples and their irradiance (direct, and indirect off opaque surfaces) do not depend on the
-        profile (paper Eq. 2 has only ``F_t(eta)`` of the material), so a new material of the same ``eta``, another
-        profile model or another transport accuracy needs only the transports (Eq. 1) built again. A new ``eta``
-        changes ``F_t`` at every sample: that needs :meth:`prepare`.
+        profile (paper Eq. 2 has only ``F_t(eta)`` of the material, and with ``incidence = oblique`` the gain of its
+        reduced albedo), so a new material of the same ``eta`` (and reduced albedo), another profile model or another
+        transport accuracy needs only the transports (Eq. 1) built again. A new ``eta`` changes ``F_t`` at every
+        sample, a new albedo the gain: that needs :meth:`prepare`.
 
         Parameters
         ----------
         objects : list of TranslucentObject, optional
             The prepared objects (``self.prepared.objects``), in that order, with other materials or profiles
-            (``dataclasses.replace(obj, material=..., profile=...)``); same shapes, same ``eta``.
+            (``dataclasses.replace(obj, material=..., profile=...)``); same shapes, same ``eta`` (and, with
+            ``incidence = oblique``, the same reduced albedo).
         params : RenderParams, optional
             New parameters differing from the integrator's only in the transport and its parameters (not in what
             sets the samples: ``sample_density``, ``downsample``, ``irradiance_samples``, ...) or ``profile``.
@@ -326,6 +329,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self._check_same_samples(params)
             self.params = params
         p = self.params
+        if p.incidence == "oblique" and not all(np.allclose(new.material.albedo_prime, old.material.albedo_prime,
+                                                            rtol=1e-9, atol=0.0)
+                                                for new, old in zip(objects, state.objects)):
+            raise ConvsssError("retransport keeps the samples' irradiance, which weights each direction by the "
+                               "albedo's oblique-incidence gain (incidence = oblique): call prepare() for a new "
+                               "reduced albedo")
         timer = StageTimer(sync=dr.sync_thread)
 
         def stage(name):

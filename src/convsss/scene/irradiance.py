@@ -11,7 +11,11 @@ map's area element (:func:`sample_surface`).
 
 Irradiance, paper Eq. 2 with the incoming Fresnel transmittance,
 
-    E(x_i) = ∫_{H^2} F_t(eta, w) L_i(x_i, w) (n_i . w) dw,
+    E(x_i) = ∫_{H^2} F_t(eta, w) g(w) L_i(x_i, w) (n_i . w) dw,
+
+where ``g`` is 1 as the paper has it, or, given the medium's reduced albedo, the oblique-incidence gain of Eq. O1
+per channel (:mod:`convsss.profiles.incidence`: light refracted in at a slant scatters nearer the surface and more
+of it comes back than the profile, a response to a normal beam, says). ``F_t g`` is :class:`Entry`.
 
 summed over every emitter:
 
@@ -39,6 +43,7 @@ import numpy as np
 
 from ..backend import load_mitsuba
 from ..hashtable import capacity, empty, probe
+from ..profiles.incidence import GAIN_NODES, gain_table
 from .mis import power_heuristic
 
 mi = load_mitsuba()
@@ -203,7 +208,31 @@ def fresnel_transmittance(eta, cos_theta):
     return 1.0 - mi.fresnel(dr.abs(cos_theta), eta)[0]
 
 
-def _delta_irradiance(scene, emitters, it, eta):
+class Entry:
+    """What of the light arriving at ``cos`` outside enters a medium and counts as irradiance: ``F_t(eta, cos)``, and,
+    with the medium's reduced ``albedo`` (3,), times the oblique-incidence gain ``g`` per channel (Eq. O1, its tables
+    read linearly in the cosine inside the medium)."""
+
+    def __init__(self, eta, albedo=None):
+        self.eta = float(eta)
+        self.gains = None if albedo is None else mi.Float(np.concatenate(
+            [gain_table(float(a), self.eta) for a in np.asarray(albedo, dtype=np.float64)]).astype(np.float32))
+
+    def __call__(self, cos):
+        """``Color3f``: the entering weight per channel for Dr.Jit cosines ``cos`` on the outside."""
+        transmitted = fresnel_transmittance(self.eta, cos)
+        if self.gains is None:
+            return mi.Color3f(transmitted)
+        inside = dr.safe_sqrt(1.0 - (1.0 - cos * cos) / (self.eta * self.eta))  # Snell's law
+        x = dr.clip(inside, 0.0, 1.0) * (GAIN_NODES - 1)
+        node = mi.UInt32(dr.minimum(dr.floor(x), GAIN_NODES - 2))
+        t = x - mi.Float(node)
+        gain = [dr.lerp(dr.gather(mi.Float, self.gains, node + c * GAIN_NODES),
+                        dr.gather(mi.Float, self.gains, node + c * GAIN_NODES + 1), t) for c in range(3)]
+        return mi.Color3f(*gain) * transmitted
+
+
+def _delta_irradiance(scene, emitters, it, entry):
     """``sum_e F_t cos I_e/r^2 V`` over the delta emitters ``emitters`` (exact: one deterministic sample each)."""
     total = dr.zeros(mi.Color3f, dr.width(it.p))
     for emitter in emitters:
@@ -211,11 +240,11 @@ def _delta_irradiance(scene, emitters, it, eta):
         cos = dr.dot(it.n, ds.d)
         lit = (cos > 0) & (ds.pdf > 0)
         lit &= ~scene.ray_test(it.spawn_ray_to(ds.p), lit)
-        total += dr.select(lit, weight * cos * fresnel_transmittance(eta, cos), 0.0)
+        total += dr.select(lit, weight * cos * entry(cos), 0.0)
     return total
 
 
-def _area_irradiance(scene, emitters, it, eta, rng):
+def _area_irradiance(scene, emitters, it, entry, rng):
     """One MIS estimate per lane of ``E`` from the non-delta ``emitters`` (area, environment, constant)."""
     total = dr.zeros(mi.Color3f, dr.width(it.p))
     # Strategy 1: each emitter samples a direction towards itself.
@@ -226,7 +255,7 @@ def _area_irradiance(scene, emitters, it, eta, rng):
         ok = (cos > 0) & (ds.pdf > 0)
         ok &= ~scene.ray_test(it.spawn_ray_to(ds.p), ok)
         mis = power_heuristic(ds.pdf, cos / dr.pi)
-        total += dr.select(ok, weight * cos * fresnel_transmittance(eta, cos) * mis, 0.0)
+        total += dr.select(ok, weight * cos * entry(cos) * mis, 0.0)
     # Strategy 2: a cosine-weighted direction; whatever emitter it reaches first counts (cos / pdf = pi).
     u = mi.Point2f(rng.next_float32(), rng.next_float32())
     local = mi.warp.square_to_cosine_hemisphere(u)
@@ -236,11 +265,11 @@ def _area_irradiance(scene, emitters, it, eta, rng):
     radiance = emitter.eval(si)
     pdf_emitter = emitter.pdf_direction(it, mi.DirectionSample3f(scene, si, it))
     mis = power_heuristic(cos / dr.pi, pdf_emitter)
-    total += dr.select(cos > 0, radiance * dr.pi * fresnel_transmittance(eta, cos) * mis, 0.0)
+    total += dr.select(cos > 0, radiance * dr.pi * entry(cos) * mis, 0.0)
     return total
 
 
-def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed):
+def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, albedo=None):
     """``E_i`` (N, 3) numpy at the points ``position`` with outward ``normal`` (Dr.Jit arrays, scene units).
 
     Parameters
@@ -252,8 +281,11 @@ def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed):
     irradiance_samples : int
         Direction samples per point for area and environment emitters.
     seed : int
+    albedo : (3,) array_like, optional
+        The medium's reduced albedo: each direction weighted by its oblique-incidence gain (:class:`Entry`).
     """
     n = dr.width(position)
+    entry = Entry(eta, albedo)
     delta = [e for e in scene.emitters() if mi.has_flag(e.flags(), mi.EmitterFlags.Delta)]
     other = [e for e in scene.emitters() if not mi.has_flag(e.flags(), mi.EmitterFlags.Delta)]
     out = np.zeros((n, 3))
@@ -264,14 +296,14 @@ def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed):
         index = dr.arange(mi.UInt32, start, stop)
         p = dr.gather(mi.Point3f, position, index)
         nrm = dr.gather(mi.Vector3f, normal, index)
-        e = _delta_irradiance(scene, delta, _interaction(p, nrm), eta)
+        e = _delta_irradiance(scene, delta, _interaction(p, nrm), entry)
         if other:
             lanes = (stop - start) * irradiance_samples
             owner = dr.arange(mi.UInt32, lanes) // irradiance_samples
             it = _interaction(dr.gather(mi.Point3f, p, owner), dr.gather(mi.Vector3f, nrm, owner))
             rng = mi.PCG32(lanes, dr.opaque(mi.UInt64, (int(seed) * 0x85EBCA6B + start) % 2**64),
                            dr.arange(mi.UInt64, lanes))
-            estimate = _area_irradiance(scene, other, it, eta, rng)
+            estimate = _area_irradiance(scene, other, it, entry, rng)
             per_point = dr.ravel(estimate).numpy().reshape(-1, irradiance_samples, 3).mean(axis=1)
             out[start:stop] += per_point
         out[start:stop] += dr.ravel(e).numpy().reshape(-1, 3)
@@ -335,11 +367,12 @@ def _voxel_ranks(points, owners, spacing):
     return key, rank
 
 
-def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None):
+def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None, albedo=None):
     """``E_ind`` (N, 3) numpy: paper Eq. 2 over the light that reaches the points after at least one bounce.
 
     Cosine-weighted directions (pdf ``cos / pi``): a point with ``P`` paths gets
-    ``E_ind = (1/P) sum_j F_t(eta, cos_j) pi L_ind(x, w_j)``; with ``P < 1`` a random fraction ``P`` of the points
+    ``E_ind = (1/P) sum_j F_t(eta, cos_j) g(cos_j) pi L_ind(x, w_j)`` (:class:`Entry`); with ``P < 1`` a random
+    fraction ``P`` of the points
     trace one path each, with weight ``1/P`` (unbiased; the transport averages neighbouring points). The directions
     are stratified across neighbouring points (:func:`stratified_directions`, voxels holding about 16 paths).
 
@@ -360,6 +393,8 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
     seed : int
     stop : callable, optional
         Asked between chunks; when it returns True the rest is left out (Ctrl-C).
+    albedo : (3,) array_like, optional
+        The medium's reduced albedo: each path weighted by its oblique-incidence gain (:class:`Entry`).
 
     Returns
     -------
@@ -367,6 +402,7 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         (N, 3) indirect irradiance, >= 0.
     """
     n = dr.width(position)
+    entry = Entry(eta, albedo)
     per_point = max(1, round(paths)) if paths >= 1 else 1
     if paths >= 1:
         owners = np.repeat(np.arange(n), per_point)
@@ -391,9 +427,9 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         u = np.ascontiguousarray(square[start:start + CHUNK_PATHS].T)
         local = mi.warp.square_to_cosine_hemisphere(mi.Point2f(u[0], u[1]))
         rays = it.spawn_ray(it.sh_frame.to_world(local))
-        # Paper Eq. 2 by cosine sampling: F_t(eta, cos) L cos / (cos / pi) = F_t pi L, over the paths per point.
-        weight = (fresnel_transmittance(eta, local.z) * dr.pi * scale).numpy().astype(np.float64)
-        radiance = incident(sampler, rays, np.repeat(weight[:, None], 3, axis=1), owner)
+        # Paper Eq. 2 by cosine sampling: F_t(eta, cos) g L cos / (cos / pi) = F_t g pi L, over the paths per point.
+        weight = dr.ravel(entry(local.z) * dr.pi * scale).numpy().reshape(-1, 3).astype(np.float64)
+        radiance = incident(sampler, rays, weight, owner)
         for c in range(3):
             out[:, c] += np.bincount(owner, radiance[:, c], minlength=n)
     return np.maximum(np.nan_to_num(out), 0.0)
@@ -412,7 +448,7 @@ def sample_count(area_mm2, cell_mm, sample_density, profile_area_mm2=math.inf, p
     return max(64, math.ceil(max(by_pixel, by_profile)))
 
 
-def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=0, stage=None):
+def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=0, stage=None, oblique=False):
     """Scene -> samples, the data flow's first arrow: about ``count`` stratified points over the whole surface of the
     translucent object ``obj``, with their area, outward normal and irradiance (paper Eq. 2), in mm.
 
@@ -430,6 +466,8 @@ def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=
         The same seed and stream give the same samples.
     stage : callable, optional
         ``stage(name)`` returns a context manager timing the stage ``samples``, then ``irradiance``.
+    oblique : bool
+        Weight each direction by the medium's oblique-incidence gain (:class:`Entry`).
 
     Returns
     -------
@@ -447,5 +485,6 @@ def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=
         position_mm = dr.ravel(position).numpy().reshape(-1, 3).astype(np.float64) * unit_mm
         normal_np = dr.ravel(normal).numpy().reshape(-1, 3).astype(np.float64)
     with stage("irradiance"):
-        irradiance = surface_irradiance(scene, position, normal, obj.eta, irradiance_samples, seed + 7919 * stream)
+        irradiance = surface_irradiance(scene, position, normal, obj.eta, irradiance_samples, seed + 7919 * stream,
+                                        albedo=obj.material.albedo_prime if oblique else None)
         return IrradianceSamples(position_mm, area_mm2, irradiance, normal_np)
