@@ -8,8 +8,18 @@ from convsss import material
 from convsss.errors import ConvsssError
 from convsss.samples import IrradianceSamples, ViewFrame
 from convsss.transport import make_transport
-from convsss.transport.multiscale import (BAND_TABLE, _deposit, _interpolate, core_width, cube_cells, group, merge,
-                                          scales, sheet_side, split)
+from convsss.transport.multiscale import (
+    BAND_TABLE,
+    _deposit,
+    _interpolate,
+    core_width,
+    cube_cells,
+    group,
+    merge,
+    scales,
+    sheet_side,
+    split,
+)
 
 FRAME = ViewFrame.look_at(origin=[0, 0, 100], target=[0, 0, 0])
 

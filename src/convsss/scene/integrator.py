@@ -252,12 +252,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         indirect, deferred = [], []
         with stage("indirect"):
             for k, (obj, s) in enumerate(zip(objects, samples)):
+                albedo = obj.material.albedo_prime if p.incidence == "oblique" else None
                 position = mi.Point3f(*np.ascontiguousarray((s.position / p.unit_mm).T, dtype=np.float32))
                 normal = mi.Vector3f(*np.ascontiguousarray(s.normal.T, dtype=np.float32))
                 indirect.append(indirect_irradiance(tracer.incident, position, normal, s.area / p.unit_mm**2, obj.eta,
                                                     p.indirect_samples, seed + 104729 * (k + 1),
-                                                    stop=self.should_stop,
-                                                    albedo=obj.material.albedo_prime if p.incidence == "oblique" else None))
+                                                    stop=self.should_stop, albedo=albedo))
                 deferred.append(tracer.deferred)
                 tracer.deferred = []
         return indirect, deferred, tracer
