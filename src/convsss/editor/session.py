@@ -183,6 +183,8 @@ class EditSession:
         unknown = sorted(set(changes) - set(FIELDS))
         if unknown:
             raise ConvsssError(f"the editor cannot set {unknown[0]!r}: it sets {', '.join(FIELDS)}")
+        from ..scene.irradiance import keeps_irradiance
+
         with self.lock, warnings.catch_warnings():
             warnings.simplefilter("ignore", OpticallyThinWarning)
             start = time.perf_counter()
@@ -191,9 +193,8 @@ class EditSession:
                 check_model(model)
             material = self._material(changes, model)
             params = self._params(changes.get("accuracy"))
-            new_albedo = not np.allclose(material.albedo_prime, self.material.albedo_prime, rtol=1e-9, atol=0.0)
-            if material.eta != self.material.eta or (params.incidence == "oblique" and new_albedo):
-                rebuilt = "prepare"  # the samples' irradiance depends on eta (F_t) and the albedo (incidence gain)
+            if not keeps_irradiance(self.material, material, params.incidence):
+                rebuilt = "prepare"
             elif (model != self.model or params.to_dict() != self.integrator.params.to_dict()
                   or not (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)
                           and np.array_equal(material.sigma_a, self.material.sigma_a))):

@@ -33,7 +33,7 @@ from ..timing import StageTimer
 from ..transport import make_transport
 from .aovs import FirstHitAOVs
 from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
-from .irradiance import indirect_irradiance, object_samples, sample_count
+from .irradiance import indirect_irradiance, keeps_irradiance, object_samples, sample_count
 from .objects import find_translucent_objects
 from .params import RenderParams, aov_channels, parse_aovs, plugin_parameters
 from .presets import register_medium
@@ -329,9 +329,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self._check_same_samples(params)
             self.params = params
         p = self.params
-        if p.incidence == "oblique" and not all(np.allclose(new.material.albedo_prime, old.material.albedo_prime,
-                                                            rtol=1e-9, atol=0.0)
-                                                for new, old in zip(objects, state.objects)):
+        if not all(keeps_irradiance(old.material, new.material, p.incidence)
+                   for new, old in zip(objects, state.objects)):  # the same eta: only the albedo can differ
             raise ConvsssError("retransport keeps the samples' irradiance, which weights each direction by the "
                                "albedo's oblique-incidence gain (incidence = oblique): call prepare() for a new "
                                "reduced albedo")

@@ -232,6 +232,13 @@ class Entry:
         return mi.Color3f(*gain) * transmitted
 
 
+def keeps_irradiance(old, new, incidence):
+    """Whether samples lit for the material ``old`` keep their irradiance for ``new``: the same ``eta`` (``F_t``)
+    and, with ``incidence`` oblique, the same reduced albedo (its gain, :class:`Entry`) to rounding."""
+    return old.eta == new.eta and (incidence != "oblique" or np.allclose(old.albedo_prime, new.albedo_prime,
+                                                                          rtol=1e-9, atol=0.0))
+
+
 def _delta_irradiance(scene, emitters, it, entry):
     """``sum_e F_t cos I_e/r^2 V`` over the delta emitters ``emitters`` (exact: one deterministic sample each)."""
     total = dr.zeros(mi.Color3f, dr.width(it.p))
