@@ -65,14 +65,15 @@ def test_object_and_mask_mark_the_sphere_not_the_floor(floor_render, object_mask
 
 @pytest.mark.parametrize("screen", [True, False], ids=["screen-table", "transport"])
 def test_exitance_is_what_the_sphere_pixels_are_made_of(mi, sphere_scene, monkeypatch, screen):
-    """Index-matched boundary (F_t = 1, no reflection): every camera sample on the sphere has radiance M / pi (paper
-    Eq. 7), so over fully covered pixels pi * RGB equals the exitance AOV, M read from the screen table or, with
+    """Index-matched boundary (F_t = 1, no reflection), ``incidence`` normal: every camera sample on the sphere has
+    radiance M / pi (paper Eq. 7), so over fully covered pixels pi * RGB equals the exitance AOV, M read from the screen table or, with
     the table disabled, from the transport itself."""
     from convsss.scene.screen import ScreenExitance
 
     if not screen:
         monkeypatch.setattr(ScreenExitance, "_projection_agrees", lambda *args: False)
-    scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=2, integrator={"aovs": "exitance,mask"}))
+    scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=2, integrator={"aovs": "exitance,mask",
+                                                                                   "incidence": "normal"}))
     assert scene.integrator().stats["screen_exitance"]["usable"] == screen
     aov = _layers(image, ["exitance.R", "exitance.G", "exitance.B", "mask.Y"])
     covered = aov["mask.Y"] == 1.0
@@ -82,6 +83,26 @@ def test_exitance_is_what_the_sphere_pixels_are_made_of(mi, sphere_scene, monkey
     np.testing.assert_array_equal(exitance[aov["mask.Y"] == 0], 0.0)
     plain, _ = _render(mi, sphere_scene(floor=True, res=32, spp=2))  # the AOV asked the transports nothing more
     assert scene.integrator().stats["exitance_lookups"] == plain.integrator().stats["exitance_lookups"]
+
+
+def test_oblique_exit_weights_the_exitance_by_the_view_cosines_gain(mi, sphere_scene):
+    """``incidence`` oblique: a camera sample on the index-matched sphere has radiance ``M g(mu_o) / (pi k)`` (Eq. O4),
+    ``mu_o`` its view cosine: over covered pixels away from the rim, pi RGB / M is that of the pixel's normal."""
+    from convsss.profiles.incidence import exit_normalization, gain
+
+    names = ["exitance.R", "exitance.G", "exitance.B", "mask.Y", "normal.X", "normal.Y", "normal.Z"]
+    scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=2, integrator={"aovs": "exitance,mask,normal"}))
+    aov = _layers(image, names)
+    exitance = np.stack([aov[f"exitance.{c}"] for c in "RGB"], axis=-1)
+    normal = np.stack([aov[f"normal.{c}"] for c in "XYZ"], axis=-1)
+    eye = np.array([0.0, 4.0, 16.0])  # sphere_scene's camera (radius 2 at the origin)
+    cos = (normal * (eye - 2.0 * normal)).sum(axis=-1) / np.linalg.norm(eye - 2.0 * normal, axis=-1)
+    covered = (aov["mask.Y"] == 1.0) & (cos > 0.4)
+    assert covered.sum() > 100
+    albedo = convsss.material("skin1").albedo_prime
+    expected = gain(albedo, 1.0, cos[covered]) / exit_normalization(albedo, 1.0)
+    np.testing.assert_allclose(np.pi * image[covered][:, :3] / exitance[covered], expected, rtol=0.02)
+    assert np.ptp(expected[:, 2]) > 0.1  # the view cosine matters for skin's blue
 
 
 def test_irradiance_is_the_point_lights_cosine_over_r2(mi, sphere_scene):

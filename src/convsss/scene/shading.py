@@ -4,8 +4,10 @@ A path vertex on a **translucent** object adds (paper Eq. 7)
 
     L_sss = (1/pi) F_t(eta, w_o) M(x),
 
-with ``M`` the transport's exitance at ``x`` (mm) and ``F_t`` the Fresnel transmittance towards the viewer, plus the
-boundary's reflection, by the integrator's ``specular`` mode:
+with ``M`` the transport's exitance at ``x`` (mm) and ``F_t`` the Fresnel transmittance towards the viewer (with
+``incidence`` oblique times the exit gain ``g(mu_o) / k`` of the object's medium, Eq. O4 of
+:mod:`convsss.profiles.incidence`: the reciprocal of the entry gain), plus the boundary's reflection, by the
+integrator's ``specular`` mode:
 
 - ``bsdf``: the scene's dielectric restricted to its reflection lobe: direct light by emitter sampling (for a rough
   boundary) and a reflected ray (weight ``F_r`` for a smooth one) that continues the path, up to ``max_depth``;
@@ -35,6 +37,8 @@ import drjit as dr
 import numpy as np
 
 from ..backend import load_mitsuba
+from ..profiles.incidence import exit_normalization
+from .irradiance import Entry
 from .mis import power_heuristic
 from .objects import hit_indices
 
@@ -53,6 +57,20 @@ def _color(array):
     """(K, 3) numpy -> mi.Color3f (copied, so numpy buffers may be reused)."""
     a = np.ascontiguousarray(np.asarray(array, dtype=np.float32).T)
     return mi.Color3f(mi.Float(a[0].copy()), mi.Float(a[1].copy()), mi.Float(a[2].copy()))
+
+
+class Leaving:
+    """What of an object's exitance ``M`` leaves towards a direction at ``cos`` outside, per unit solid angle and
+    projected area: ``(1/pi) F_t(eta, cos)`` (paper Eq. 7), or, given the medium's reduced ``albedo`` (3,),
+    ``F_t g(mu_o) / (pi k)`` per channel (Eq. O4; the gain is :class:`~convsss.scene.irradiance.Entry`'s)."""
+
+    def __init__(self, eta, albedo=None):
+        self.entry = Entry(eta, albedo)
+        k = np.ones(3) if albedo is None else exit_normalization(np.asarray(albedo, dtype=np.float64), eta)
+        self.scale = mi.Color3f(*(1.0 / (np.pi * k)).tolist())
+
+    def __call__(self, cos):
+        return self.entry(cos) * self.scale
 
 
 class Shader:
@@ -77,6 +95,8 @@ class Shader:
         self.scene, self.objects, self.transports, self.params = scene, objects, transports, params
         self.screen = screen
         self.stop = stop
+        self.leaving = [Leaving(obj.eta, obj.material.albedo_prime if params.incidence == "oblique" else None)
+                        for obj in objects]
         self.ctx = mi.BSDFContext()
         self.ctx_reflect = mi.BSDFContext()
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
@@ -106,6 +126,13 @@ class Shader:
             which = dr.select(on_object, k, which)
             eta = dr.select(on_object, obj.eta, eta)
         return which, eta
+
+    def _leaving(self, which, cos):
+        """Per lane, the weight of ``M`` towards the viewer at ``cos`` on the object ``which`` (:class:`Leaving`)."""
+        weight = dr.zeros(mi.Color3f, dr.width(cos))
+        for k, leaving in enumerate(self.leaving):
+            weight = dr.select(which == k, leaving(dr.abs(cos)), weight)
+        return weight
 
     def resolve(self, transports, deferred=None):
         """The radiance of the recorded hits (:attr:`deferred`, or the list given) now that ``transports`` exist:
@@ -265,8 +292,7 @@ class Shader:
             alive = active & si.is_valid() & (depth + 1 < max_depth)
             which, eta = self.classify(si)
             translucent = alive & (which >= 0)
-            # Paper Eq. 7: (1/pi) F_t(eta, w_o) M(x_o) on translucent objects.
-            weight = throughput * (1.0 - mi.fresnel(dr.abs(si.wi.z), eta)[0]) / dr.pi
+            weight = throughput * self._leaving(which, si.wi.z)  # times M: paper Eq. 7 (or O4)
             known, sss = self._screen_exitance(si, which, translucent, weight)
             contribution += sss
             asked = translucent & ~known
