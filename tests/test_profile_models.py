@@ -111,7 +111,7 @@ def test_colour_and_mfp_round_trip(model):
 
 
 def test_colour_out_of_reach_is_one_line_error():
-    with pytest.raises(ConvsssError, match="colour 1.2 in channel R is not reachable by the pbd profile"):
+    with pytest.raises(ConvsssError, match="colour 1.2 in channel R is not reachable by the pbd total"):
         albedo_from_reflectance("pbd", [1.2, 0.5, 0.5], 1.3)
     with pytest.raises(ConvsssError, match="mfp_mm"):
         convsss.Material.from_color(0.5, -1.0)

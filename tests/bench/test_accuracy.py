@@ -121,12 +121,13 @@ def test_bench_accuracy_quick_end_to_end(tmp_path, monkeypatch):
 
 def test_a_case_takes_the_profile_the_renderer_would():
     from convsss.bench.scenes import prepare_case, scene_dict
-    from convsss.profiles import DEFAULT_PROFILE, PROFILE_MODELS
+    from convsss.profiles import DEFAULT_PROFILE, PROFILE_MODELS, ScaledProfile
 
     for spec, model in (("", DEFAULT_PROFILE), ("pbd", "pbd"), ("better-dipole", "better-dipole")):
         case = prepare_case(scene_dict("bunny4", 24), sample_density=0.5, profile=spec)
-        assert type(case["profile"]) is PROFILE_MODELS[model]
-        assert case["object"]["profile"].startswith(PROFILE_MODELS[model].__name__)
+        profile = case["profile"]  # at the exact total, the renderer's default profile_total
+        assert isinstance(profile, ScaledProfile) and type(profile.base) is PROFILE_MODELS[model]
+        assert case["object"]["profile"].startswith(f"ScaledProfile({PROFILE_MODELS[model].__name__}")
 
 
 def test_bench_accuracy_refuses_a_bad_profile_in_one_line():

@@ -17,7 +17,7 @@ def test_new_coefficients_rebuild_the_transport_on_the_same_samples(session):
     assert "samples" not in state["last"]["seconds"] and "irradiance" not in state["last"]["seconds"]
     assert s.integrator.prepared is prepared and prepared.samples is samples and prepared.irradiance is irradiance
     assert prepared.transports[0] is not transports[0]
-    assert prepared.transports[0].profile.sigma_a.tolist() == [0.3, 0.3, 0.3]
+    assert prepared.transports[0].profile.base.sigma_a.tolist() == [0.3, 0.3, 0.3]
     assert state["version"] == version + 1 and state["material"]["sigma_a"] == [0.3, 0.3, 0.3]
     assert np.mean(s.image) < np.mean(before)  # more absorption: darker
     # The scene holds the new medium too.
@@ -31,7 +31,7 @@ def test_model_accuracy_and_colour_rebuild_the_transport_only(session):
     s = session(incidence="normal")
     samples = s.integrator.prepared.samples
     assert s.update(model="better-dipole")["last"]["rebuilt"] == "transport"
-    assert type(s.integrator.prepared.transports[0].profile).__name__ == "BetterDipoleProfile"
+    assert type(s.integrator.prepared.transports[0].profile.base).__name__ == "BetterDipoleProfile"
     state = s.update(accuracy=0.05)
     assert state["last"]["rebuilt"] == "transport" and state["accuracy"] == 0.05
     assert s.integrator.prepared.transports[0].params["accuracy"] == 0.05
@@ -52,7 +52,7 @@ def test_a_new_albedo_prepares_again_with_oblique_incidence(session):
     assert s.integrator.prepared.samples is samples
     state = s.update(sigma_a=[0.3, 0.3, 0.3])
     assert state["last"]["rebuilt"] == "prepare" and s.integrator.prepared.samples is not samples
-    assert s.integrator.prepared.transports[0].profile.sigma_a.tolist() == pytest.approx([0.3, 0.3, 0.3])
+    assert s.integrator.prepared.transports[0].profile.base.sigma_a.tolist() == pytest.approx([0.3, 0.3, 0.3])
 
 
 def test_retransport_refuses_a_new_albedo_with_oblique_incidence(session):

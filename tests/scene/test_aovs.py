@@ -66,8 +66,8 @@ def test_object_and_mask_mark_the_sphere_not_the_floor(floor_render, object_mask
 @pytest.mark.parametrize("screen", [True, False], ids=["screen-table", "transport"])
 def test_exitance_is_what_the_sphere_pixels_are_made_of(mi, sphere_scene, monkeypatch, screen):
     """Index-matched boundary (F_t = 1, no reflection), ``incidence`` normal: every camera sample on the sphere has
-    radiance M / pi (paper Eq. 7), so over fully covered pixels pi * RGB equals the exitance AOV, M read from the screen table or, with
-    the table disabled, from the transport itself."""
+    radiance M / pi (paper Eq. 7), so over fully covered pixels pi * RGB equals the exitance AOV, M read from the
+    screen table or, with the table disabled, from the transport itself."""
     from convsss.scene.screen import ScreenExitance
 
     if not screen:

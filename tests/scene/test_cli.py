@@ -504,11 +504,14 @@ def test_render_reference_and_scene_take_a_colour_and_mfp(tmp_path):
 def test_render_warns_when_the_colour_model_is_not_the_rendered_one(tmp_path):
     args = ("render", "--mesh", "bunny", "--color", "0.7", "--mfp-mm", "1", "--size-mm", 20, "--width", 16,
             "--height", 16, "--spp", 1, "--no-progress", "--transport", "hierarchical")
-    result = run(*args, "--profile", "better-dipole", "-o", tmp_path / "a")
+    result = run(*args, "--profile", "better-dipole", "--profile-total", "model", "-o", tmp_path / "a")
     assert result.exit_code == 0, result.output
-    assert "warning: --color is the total reflectance under the dipole profile but the object renders with " \
-           "better-dipole: give --color-model better-dipole" in result.stderr
-    result = run(*args, "--profile", "better-dipole", "--color-model", "better-dipole", "-o", tmp_path / "b")
+    assert "warning: --color is the exact total reflectance but the object renders with the better-dipole total: " \
+           "give --color-model better-dipole" in result.stderr
+    result = run(*args, "--profile", "better-dipole", "--profile-total", "model", "--color-model", "better-dipole",
+                 "-o", tmp_path / "b")
+    assert result.exit_code == 0 and "--color-model" not in result.stderr
+    result = run(*args, "--profile", "better-dipole", "-o", tmp_path / "c")  # every model renders the exact total
     assert result.exit_code == 0 and "--color-model" not in result.stderr
 
 
@@ -518,7 +521,7 @@ def test_render_warns_when_the_colour_model_is_not_the_rendered_one(tmp_path):
     (("--mesh", "bunny", "--color", "0.5", "--size-mm", 10), "--color needs --mfp-mm"),
     (("--mesh", "bunny", "--mfp-mm", "1", "--size-mm", 10), "--mfp-mm needs --color"),
     (("--mesh", "bunny", "--color", "1.2,0.5,0.3", "--mfp-mm", "1", "--size-mm", 10),
-     "colour 1.2 in channel R is not reachable by the dipole profile"),
+     "colour 1.2 in channel R is not reachable by the exact total"),
     (("--mesh", "bunny", "--color", "0.5,-0.1,0.3", "--mfp-mm", "1", "--size-mm", 10), "channel G is not reachable"),
     (("--mesh", "bunny", "--color", "0.5", "--mfp-mm", "0", "--size-mm", 10), "must be finite and > 0"),
     (("--mesh", "bunny", "--color", "0.5,0.4", "--mfp-mm", "1", "--size-mm", 10), "give one number or three"),

@@ -114,7 +114,7 @@ def test_user_profile_replaces_the_dipole(mi, sphere_scene, object_mask, tmp_pat
     table = np.column_stack([r, dipole(r)])
     csv = tmp_path / "profile.csv"
     csv.write_text("r_mm,R,G,B\n" + "\n".join(",".join(f"{x:.9g}" for x in row) for row in table))
-    scene, base = _render(mi, sphere_scene(res=32, integrator={"profile": "dipole"}))
+    scene, base = _render(mi, sphere_scene(res=32, integrator={"profile": "dipole", "profile_total": "model"}))
     _, user = _render(mi, sphere_scene(res=32, integrator={"profile": str(csv)}))
     again = _render(mi, sphere_scene(res=32, integrator={"profile": str(csv)}))[1]
     mask = object_mask(scene)

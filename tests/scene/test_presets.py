@@ -7,7 +7,7 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
-from convsss.profiles.models import PROFILE_MODELS, model_profile
+from convsss.profiles.models import COLOR_MODELS, color_of
 from convsss.scene.loading import load_scene
 from convsss.scene.materials import boundary_dict
 from convsss.scene.objects import find_translucent_objects
@@ -26,8 +26,8 @@ def _named(scene, medium, boundary="null", eta=1.3):
     return {**scene, "object": obj}
 
 
-def _material(mi, source, unit_mm=1.0, profile=""):
-    return find_translucent_objects(mi, load_scene(source), unit_mm, profile)[0].material
+def _material(mi, source, unit_mm=1.0, profile="", total="exact"):
+    return find_translucent_objects(mi, load_scene(source), unit_mm, profile, total)[0].material
 
 
 @pytest.mark.parametrize("boundary", ["null", "dielectric", "roughdielectric"])
@@ -56,25 +56,28 @@ def test_a_preset_converts_to_scene_units(mi, sphere_scene, unit_mm):
     assert float(params["scale"]) == pytest.approx(float(np.max(convsss.material("marble").sigma_t_prime)) * unit_mm)
 
 
-@pytest.mark.parametrize("model", sorted(PROFILE_MODELS))
+@pytest.mark.parametrize("model", COLOR_MODELS)
 def test_color_and_mfp_round_trip(mi, sphere_scene, model):
-    """The render-side material's total reflectance under the model is the colour (1e-3), its reduced mean free path
-    the mfp (float32 coefficients in the scene), with mm converted to scene units."""
+    """The render-side material's total reflectance under the colour's model (the exact total, or a model's own) is
+    the colour (1e-3), its reduced mean free path the mfp (float32 coefficients in the scene), with mm converted to
+    scene units; rendering at that total does not warn."""
     color, mfp = [0.8, 0.5, 0.3], [1.0, 2.0, 4.0]
     unit_mm = 0.5
-    scene = _named(sphere_scene(unit_mm=unit_mm, integrator={"profile": model}),
+    profile, total = ("", "exact") if model == "exact" else (model, "model")
+    scene = _named(sphere_scene(unit_mm=unit_mm, integrator={"profile": profile, "profile_total": total}),
                    {"color": {"type": "rgb", "value": color}, "mfp_mm": {"type": "rgb", "value": mfp},
                     "model": model, "eta": 1.4, "unit_mm": unit_mm}, "dielectric", 1.4)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ColorModelWarning)
-        made = _material(mi, scene, unit_mm, profile=model)
-    np.testing.assert_allclose(model_profile(model, made).total_reflectance, color, atol=1e-3)
+        made = _material(mi, scene, unit_mm, profile, total)
+    np.testing.assert_allclose(color_of(made, model), color, atol=1e-3)
     np.testing.assert_allclose(made.mfp_mm, mfp, rtol=1e-5)
     assert made.eta == pytest.approx(1.4)
 
 
 def test_colour_in_xml_forms(mi, tmp_path, sphere_scene):
-    """rgb, float and 'R,G,B' string colours; one mfp for all channels; the default model (dipole) and eta (1.3)."""
+    """rgb, float and 'R,G,B' string colours; one mfp for all channels; the default model (the exact total) and eta
+    (1.3)."""
     base = scene_to_xml(sphere_scene(boundary="dielectric"))
     materials = []
     for colour in ('<rgb name="color" value="0.6, 0.6, 0.6"/>', '<float name="color" value="0.6"/>',
@@ -87,7 +90,7 @@ def test_colour_in_xml_forms(mi, tmp_path, sphere_scene):
         materials.append(_material(mi, path))
     for made in materials:
         _same_material(made, materials[0])
-        np.testing.assert_allclose(made.profile("dipole").total_reflectance, 0.6, atol=1e-3)
+        np.testing.assert_allclose(color_of(made, "exact"), 0.6, atol=1e-3)
         np.testing.assert_allclose(made.mfp_mm, 1.5, rtol=1e-5)
 
 
@@ -138,7 +141,7 @@ def test_the_example_scene_names_a_preset_and_a_colour(mi):
     ({"color": 0.5, "mfp_mm": 1.0, "scale": 2.0}, "color + mfp_mm and coefficients (scale) given"),
     ({"preset": "skin1", "color": 0.5, "mfp_mm": 1.0}, "both a preset and color/mfp_mm"),
     ({"preset": "skin1", "eta": 1.5}, "eta goes with color and mfp_mm"),
-    ({"color": 0.5, "mfp_mm": 1.0, "model": "dipol"}, "profile model 'dipol' is not allowed"),
+    ({"color": 0.5, "mfp_mm": 1.0, "model": "dipol"}, "colour model 'dipol' is not allowed"),
     ({"preset": "skin1", "unit_mm": 0.0}, "unit_mm=0.0 is not allowed"),
     ({"preset": "skin1", "colour": 0.5}, "unknown property 'colour'"),
     ({}, "nothing given"),
@@ -170,7 +173,7 @@ def test_a_boundary_that_disagrees_is_refused(mi, sphere_scene, medium, boundary
 def test_null_boundary_takes_a_preset_and_a_colour_at_eta_1(mi, sphere_scene):
     _same_material(_material(mi, _named(sphere_scene(), {"preset": "skin1"})), _material(mi, sphere_scene()))
     made = _material(mi, _named(sphere_scene(), {"color": 0.7, "mfp_mm": 1.0, "eta": 1.0}))
-    np.testing.assert_allclose(made.profile().total_reflectance, 0.7, atol=1e-3)
+    np.testing.assert_allclose(color_of(made, "exact"), 0.7, atol=1e-3)
     assert made.eta == 1.0
 
 
@@ -183,11 +186,17 @@ def test_units_of_medium_and_integrator_must_agree(mi, sphere_scene):
 
 def test_rendering_with_another_model_than_the_colours_warns(mi, sphere_scene):
     scene = load_scene(_named(sphere_scene(), {"color": 0.6, "mfp_mm": 1.0, "eta": 1.0}))
-    with pytest.warns(ColorModelWarning, match="inverted under the dipole profile but it renders with pbd"):
-        find_translucent_objects(mi, scene, profile="pbd")
+    with pytest.warns(ColorModelWarning, match="is the exact total but it renders with the pbd total"):
+        find_translucent_objects(mi, scene, profile="pbd", total="model")
     with warnings.catch_warnings():
         warnings.simplefilter("error", ColorModelWarning)
-        find_translucent_objects(mi, scene, profile="dipole")
+        find_translucent_objects(mi, scene, profile="pbd", total="exact")  # every model renders the exact total
+    scene = load_scene(_named(sphere_scene(), {"color": 0.6, "mfp_mm": 1.0, "eta": 1.0, "model": "dipole"}))
+    with pytest.warns(ColorModelWarning, match="is the dipole total but it renders with the exact total"):
+        find_translucent_objects(mi, scene)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ColorModelWarning)
+        find_translucent_objects(mi, scene, profile="dipole", total="model")
 
 
 def test_an_edited_medium_is_no_longer_its_preset(mi, sphere_scene):

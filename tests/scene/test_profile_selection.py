@@ -1,5 +1,6 @@
 """The profile chosen per translucent object by the integrator's ``profile`` parameter."""
 
+import numpy as np
 import pytest
 
 import convsss
@@ -12,6 +13,7 @@ from convsss.profiles import (
     DipoleProfile,
     TabulatedProfile,
 )
+from convsss.profiles.models import exact_total, model_profile
 from convsss.scene.materials import translucent
 from convsss.scene.objects import find_translucent_objects
 
@@ -26,8 +28,25 @@ def two_spheres(mi):
     return mi.load_dict(scene)
 
 
-def _profiles(mi, scene, spec):
-    return {o.name: o.profile for o in find_translucent_objects(mi, scene, 1.0, spec)}
+def _profiles(mi, scene, spec, total="model"):
+    return {o.name: o.profile for o in find_translucent_objects(mi, scene, 1.0, spec, total)}
+
+
+def test_by_default_every_model_has_the_exact_total(mi, two_spheres, tmp_path):
+    """``profile_total`` exact: each model's profile scaled per channel to the half-space's exact total, its shape
+    kept; a CSV profile as given."""
+    csv = tmp_path / "flat.csv"
+    csv.write_text("r_mm,R,G,B\n0,0.1,0.1,0.1\n2,0,0,0\n")
+    r = np.array([0.05, 0.5, 2.0])
+    for spec in PROFILE_MODELS:
+        objects = {o.name: o for o in find_translucent_objects(mi, two_spheres, 1.0, f"{spec},milk={csv}")}
+        assert isinstance(objects["milk"].profile, TabulatedProfile)
+        skin = objects["skin"]
+        own = model_profile(spec, skin.material)
+        exact = exact_total(skin.material.albedo_prime, skin.material.eta)
+        np.testing.assert_allclose(skin.profile.total_reflectance, exact, rtol=1e-6)
+        np.testing.assert_allclose(skin.profile(r) / own(r), np.broadcast_to(exact / own.total_reflectance, (3, 3)),
+                                   rtol=1e-9)
 
 
 def test_one_model_for_every_object_and_per_object_choices(mi, two_spheres, tmp_path):

@@ -34,6 +34,8 @@ def output_stem(output):
 
 
 MODEL_NAMES = ("dipole", "better-dipole", "pbd", "burley")
+#: What --color may be the total reflectance of (convsss.profiles.models.COLOR_MODELS).
+COLOR_MODEL_NAMES = ("exact", *MODEL_NAMES)
 
 
 def color_options(func):
@@ -48,10 +50,11 @@ def color_options(func):
         click.option("--eta", type=float,
                      help="With --color: the relative index of refraction of a dielectric boundary (a null boundary "
                           "is eta 1). [default: 1.3]"),
-        click.option("--color-model", type=click.Choice(MODEL_NAMES),
-                     help="With --color: the profile model under which --color is the total reflectance. Give the "
-                          "model you render with (--profile) so the render matches the colour; render and reference "
-                          "must use the same. [default: dipole, the renderer's default]"),
+        click.option("--color-model", type=click.Choice(COLOR_MODEL_NAMES),
+                     help="With --color: what --color is the total reflectance of: exact, the half-space of the "
+                          "medium by exact radiative transfer, which every profile model renders with "
+                          "--profile-total exact (the default); or one model's own total (give the model you render "
+                          "with --profile-total model). Render and reference must use the same. [default: exact]"),
     ]
     return _decorate(func, options)
 
@@ -72,11 +75,11 @@ def source_material(material, color, mfp_mm, eta, color_model, boundary):
     is given), for an object with ``boundary``; one-line errors for bad combinations and values.
 
     A colour is inverted by :func:`~convsss.profiles.models.material_from_color` under ``color_model`` (default: the
-    renderer's default profile) at ``eta`` (default 1.3; 1 on a ``null`` boundary, which is index-matched). No
+    exact total) at ``eta`` (default 1.3; 1 on a ``null`` boundary, which is index-matched). No
     :class:`~convsss.materials.OpticallyThinWarning` here: the scene's object says it once, by its own name.
     """
     from ..materials import material as lookup_material
-    from ..profiles.models import DEFAULT_PROFILE, material_from_color
+    from ..profiles.models import DEFAULT_COLOR_MODEL, material_from_color
 
     by_color = color is not None or mfp_mm is not None
     if material and by_color:
@@ -93,21 +96,22 @@ def source_material(material, color, mfp_mm, eta, color_model, boundary):
         raise ConvsssError(f"--eta {eta:g} is not allowed with --boundary null: an index-matched boundary has eta 1")
     eta = 1.0 if boundary == "null" else (1.3 if eta is None else eta)
     return material_from_color(parse_triple(color, "--color"), parse_triple(mfp_mm, "--mfp-mm"), eta,
-                               color_model or DEFAULT_PROFILE, name="color", warn=False)
+                               color_model or DEFAULT_COLOR_MODEL, name="color", warn=False)
 
 
-def warn_color_model(color_model, profile):
+def warn_color_model(color_model, profile, total):
     """Warn (:class:`~convsss.scene.presets.ColorModelWarning`) when the quick scene's object (``object``), made from
-    ``--color`` under ``color_model``, renders with another profile model (the integrator's ``profile``)."""
-    from ..profiles.models import DEFAULT_PROFILE, parse_profile_spec
+    ``--color`` under ``color_model``, renders with another total (the integrator's ``profile`` and
+    ``profile_total``, :func:`~convsss.profiles.models.rendered_total_of`)."""
+    from ..profiles.models import DEFAULT_COLOR_MODEL, parse_profile_spec, rendered_total_of
     from ..scene.presets import ColorModelWarning
 
     default, per_object = parse_profile_spec(profile)
-    spec, model = per_object.get("object", default), color_model or DEFAULT_PROFILE
-    if spec in MODEL_NAMES and spec != model:
-        warnings.warn(f"--color is the total reflectance under the {model} profile but the object renders with "
-                      f"{spec}: give --color-model {spec} to match the colour under {spec}", ColorModelWarning,
-                      stacklevel=2)
+    spec, model = per_object.get("object", default), color_model or DEFAULT_COLOR_MODEL
+    rendered = rendered_total_of(spec, total)
+    if rendered is not None and rendered != model:
+        warnings.warn(f"--color is the {model} total reflectance but the object renders with the {rendered} total: "
+                      f"give --color-model {rendered} to match the colour", ColorModelWarning, stacklevel=2)
 
 
 def scene_source_options(func):

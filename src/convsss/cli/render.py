@@ -124,7 +124,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         base = scene_parameters(scene) or dict(defaults)
         params = render_params(integrator, base)
         if color is not None:
-            warn_color_model(color_model, params.profile)
+            warn_color_model(color_model, params.profile, params.profile_total)
         if write_mask:  # the AOVs asked for (on the command line, else in the scene) and the mask
             params = render_params({**integrator, "aovs": _with_mask(params.aovs)}, base)
         seconds["scene_load"] = time.perf_counter() - t

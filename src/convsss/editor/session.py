@@ -28,8 +28,16 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material, OpticallyThinWarning, catalog
 from ..materials import material as preset_material
-from ..profiles import TabulatedProfile
-from ..profiles.models import PROFILE_MODELS, check_model, model_profile, model_total, parse_profile_spec
+from ..profiles import ScaledProfile, TabulatedProfile
+from ..profiles.models import (
+    PROFILE_MODELS,
+    check_model,
+    color_of,
+    model_profile,
+    model_total,
+    parse_profile_spec,
+    rendered_total_of,
+)
 
 #: The pseudo-model of an object that came with a tabulated (CSV) profile: kept as it is, whatever the coefficients.
 TABULATED = "tabulated"
@@ -38,7 +46,9 @@ FIELDS = ("preset", "color", "mfp_mm", "sigma_s_prime", "sigma_a", "eta", "model
 
 
 def model_name(profile):
-    """The :data:`~convsss.profiles.models.PROFILE_MODELS` name of ``profile``'s class, or ``"tabulated"``."""
+    """The :data:`~convsss.profiles.models.PROFILE_MODELS` name of ``profile``'s class (of its shape's, when it is
+    scaled to another total), or ``"tabulated"``."""
+    profile = profile.base if isinstance(profile, ScaledProfile) else profile
     for name, cls in PROFILE_MODELS.items():
         if type(profile) is cls:
             return name
@@ -133,20 +143,22 @@ class EditSession:
 
     def profile(self):
         """The edited object's profile."""
-        return self._tabulated if self.model == TABULATED else model_profile(self.model, self.material)
+        if self.model == TABULATED:
+            return self._tabulated
+        return model_profile(self.model, self.material, self.integrator.params.profile_total)
 
     def state(self):
         """JSON-ready: the object, its material, model, the transport's accuracy, the choices and the last timings."""
         m, p = self.material, self.integrator.params
         accuracy = p.transport_params().get("accuracy")
         models = list(PROFILE_MODELS) + ([TABULATED] if self._tabulated is not None else [])
-        color_model = self.model if self.model != TABULATED else "dipole"
+        color_model = rendered_total_of(self.model, p.profile_total) or "dipole"
         return {
             "version": self.version,
             "object": self.target.name, "objects": [o.name for o in self.objects], "boundary": self.target.boundary,
             "eta_editable": self.eta_editable,
             "material": {"name": m.name, "sigma_s_prime": m.sigma_s_prime.tolist(), "sigma_a": m.sigma_a.tolist(),
-                         "eta": m.eta, "color": model_profile(color_model, m).total_reflectance.tolist(),
+                         "eta": m.eta, "color": color_of(m, color_model).tolist(),
                          "mfp_mm": m.mfp_mm.tolist(), "albedo_prime": m.albedo_prime.tolist(),
                          "thin_channels": m.thin_channels()},
             "color_max": model_total(color_model, 1.0, m.eta), "model": self.model, "models": models,
@@ -229,9 +241,9 @@ class EditSession:
             eta = preset.eta if self.eta_editable else 1.0
             m = Material(preset.sigma_s_prime, preset.sigma_a, eta, preset.name)
         if changes.get("color") is not None or changes.get("mfp_mm") is not None:
-            color_model = model if model != TABULATED else "dipole"
+            color_model = rendered_total_of(model, self.integrator.params.profile_total) or "dipole"
             color = (_triple(changes["color"], "color") if changes.get("color") is not None
-                     else model_profile(color_model, m).total_reflectance)
+                     else color_of(m, color_model))
             mfp = _triple(changes["mfp_mm"], "mfp_mm") if changes.get("mfp_mm") is not None else m.mfp_mm
             m = Material.from_color(color, mfp, eta, color_model)
         if changes.get("sigma_s_prime") is not None or changes.get("sigma_a") is not None:

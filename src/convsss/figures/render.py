@@ -22,7 +22,8 @@ from .scenes import load, scene_dict
 #: The paper's setting for every panel: Phong highlights, no plane correction, and surface samples by the image's
 #: cells alone (``profile_samples`` 0: the paper deposits irradiance per layer cell; the noise rule would draw
 #: millions of samples for its exact-sum references).
-BASE_PARAMS = {"specular": "phong", "correction": "none", "profile_samples": 0, "incidence": "normal"}
+BASE_PARAMS = {"specular": "phong", "correction": "none", "profile_samples": 0, "incidence": "normal",
+               "profile_total": "model"}
 
 
 def panel_params(method, params):

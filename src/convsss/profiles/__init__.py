@@ -208,6 +208,25 @@ class DipoleProfile(Profile):
         return 0.5 * self.alpha_prime * (1.0 + np.exp(-4.0 / 3.0 * self.A * s)) * np.exp(-s)
 
 
+class ScaledProfile(Profile):
+    """A profile's shape with another total reflectance: ``scale * base(r)`` per channel (``scale`` (3,)), e.g. a
+    model at the exact half-space total (:func:`~convsss.profiles.models.model_profile`, ``total="exact"``)."""
+
+    def __init__(self, base, scale):
+        self.base = base
+        self.scale = np.broadcast_to(np.asarray(scale, dtype=np.float64), (3,)).copy()
+        self.support = base.support
+
+    def __repr__(self):
+        return f"ScaledProfile({self.base!r}, scale={self.scale.tolist()})"
+
+    def __call__(self, r):
+        return self.base(r) * self.scale
+
+    def energy_within(self, radius):
+        return self.base.energy_within(radius) * self.scale
+
+
 class TabulatedProfile(Profile):
     """A profile given as samples ``R_d(r_k)`` per channel: the paper's user-defined diffusion profiles.
 
@@ -368,5 +387,5 @@ from .models import (  # noqa: E402
 )
 
 __all__ = ["CHANNELS", "DEFAULT_PROFILE", "PROFILE_MODELS", "BeamDiffusionProfile", "BetterDipoleProfile",
-           "BurleyProfile", "DipoleProfile", "Profile", "TabulatedProfile", "material_from_color", "model_profile",
-           "parse_profile_spec", "resolve_profile"]
+           "BurleyProfile", "DipoleProfile", "Profile", "ScaledProfile", "TabulatedProfile", "material_from_color",
+           "model_profile", "parse_profile_spec", "resolve_profile"]

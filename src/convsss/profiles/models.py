@@ -11,11 +11,12 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..errors import ConvsssError
-from ..fresnel import check_eta
-from . import CHANNELS, DipoleProfile, TabulatedProfile
+from ..fresnel import check_eta, diffuse_transmittance
+from . import CHANNELS, DipoleProfile, ScaledProfile, TabulatedProfile
 from .beam_diffusion import BeamDiffusionProfile
 from .better_dipole import BetterDipoleProfile
 from .burley import BurleyProfile
+from .incidence import escaped
 
 #: Every model: the paper's classic dipole and the three that match volumetric ground truth better.
 PROFILE_MODELS = {
@@ -26,6 +27,15 @@ PROFILE_MODELS = {
 }
 #: The renderer's default, chosen by measurement (docs/benchmarks.md, "Profiles against a path-traced slab").
 DEFAULT_PROFILE = "dipole"
+#: What fixes a model's total reflectance (the renderer's ``profile_total``): ``exact``, that of the half-space of the
+#: medium by exact radiative transfer (:func:`exact_total`), the model keeping its shape; ``model``, the model's own.
+PROFILE_TOTALS = ("exact", "model")
+#: The renderer's default, chosen by measurement (docs/benchmarks.md, "Oblique incidence").
+DEFAULT_TOTAL = "exact"
+#: What a colour (a total reflectance) is inverted under: the exact total, which every model renders with
+#: ``profile_total`` exact, or one model's own total.
+COLOR_MODELS = ("exact", *PROFILE_MODELS)
+DEFAULT_COLOR_MODEL = "exact"
 #: What each model is, in words (help texts, plots).
 MODEL_TITLES = {
     "dipole": "classic dipole (Jensen et al. 2001)",
@@ -43,13 +53,57 @@ def check_model(name):
     return name
 
 
+def check_color_model_name(name):
+    """``name`` if a colour may be inverted under it (:data:`COLOR_MODELS`), else a one-line error."""
+    if name not in COLOR_MODELS:
+        raise ConvsssError(f"colour model {name!r} is not allowed: choose one of {', '.join(COLOR_MODELS)}")
+    return name
+
+
 def is_model(spec):
     return spec in PROFILE_MODELS
 
 
-def model_profile(model, material):
-    """The profile of ``material`` (a :class:`~convsss.materials.Material`) by the model called ``model``."""
-    return PROFILE_MODELS[check_model(model)](material.sigma_s_prime, material.sigma_a, material.eta)
+def exact_total(albedo, eta):
+    """Per channel, the total reflectance of a half-space of reduced albedo ``albedo`` (3,) under a boundary of index
+    ``eta``, in the normalization of Eq. 1: ``rho(1) / T_d(eta)``, ``rho`` the exact escaped flux of Eq. O3
+    (:mod:`.incidence`; the Monte Carlo slab agrees within its noise)."""
+    albedo = np.broadcast_to(np.asarray(albedo, dtype=np.float64), (3,))
+    return np.array([float(escaped(a, eta, 1.0)) for a in albedo]) / diffuse_transmittance(eta)
+
+
+def model_profile(model, material, total="model"):
+    """The profile of ``material`` (a :class:`~convsss.materials.Material`) by the model called ``model``; with
+    ``total`` exact, scaled per channel to :func:`exact_total` (a :class:`~convsss.profiles.ScaledProfile`)."""
+    profile = PROFILE_MODELS[check_model(model)](material.sigma_s_prime, material.sigma_a, material.eta)
+    if check_total(total) == "model":
+        return profile
+    own = np.asarray(profile.total_reflectance, dtype=np.float64)
+    exact = exact_total(material.albedo_prime, material.eta)
+    return ScaledProfile(profile, np.divide(exact, own, out=np.ones(3), where=own > 0))
+
+
+def color_of(material, model):
+    """Per channel, the total reflectance of ``material`` under ``model`` (:data:`COLOR_MODELS`): its colour."""
+    if check_color_model_name(model) == "exact":
+        return exact_total(material.albedo_prime, material.eta)
+    return np.asarray(model_profile(model, material).total_reflectance, dtype=np.float64)
+
+
+def rendered_total_of(spec, total):
+    """What an object's total reflectance is when it renders with ``spec`` (a model or a CSV) and ``total``
+    (:data:`PROFILE_TOTALS`): the colour model (:data:`COLOR_MODELS`) a colour should be inverted under to render as
+    that colour; ``None`` for a tabulated profile (its own, whatever the material)."""
+    if not is_model(spec):
+        return None
+    return "exact" if check_total(total) == "exact" else spec
+
+
+def check_total(total):
+    """``total`` if it is one of :data:`PROFILE_TOTALS`, else a one-line error."""
+    if total not in PROFILE_TOTALS:
+        raise ConvsssError(f"profile_total={total!r} is not allowed: choose one of {', '.join(PROFILE_TOTALS)}")
+    return total
 
 
 def parse_profile_spec(text):
@@ -91,18 +145,21 @@ def profile_files(text):
     return [Path(s) for s in [default, *per_object.values()] if not is_model(s)]
 
 
-def resolve_profile(spec, material):
-    """The :class:`~convsss.profiles.Profile` for ``spec`` (a model name or a CSV path) and ``material``."""
+def resolve_profile(spec, material, total="model"):
+    """The :class:`~convsss.profiles.Profile` for ``spec`` (a model name or a CSV path) and ``material``; a model's
+    total per ``total`` (:data:`PROFILE_TOTALS`), a tabulated profile's as given."""
     if is_model(spec):
-        return model_profile(spec, material)
+        return model_profile(spec, material, total)
     return TabulatedProfile.from_csv(spec)
 
 
 # ---- Materials by colour and distance ---------------------------------------------------------------------------
 
 def model_total(model, albedo, eta):
-    """Total reflectance (normalization of Eq. 1) of ``model`` for reduced albedo ``albedo`` at index ``eta``; it
-    does not depend on the mean free path."""
+    """Total reflectance (normalization of Eq. 1) of ``model`` (one of :data:`COLOR_MODELS`) for reduced albedo
+    ``albedo`` at index ``eta``; it does not depend on the mean free path."""
+    if model == "exact":
+        return float(exact_total(albedo, eta)[0])
     cls = PROFILE_MODELS[check_model(model)]
     if cls is DipoleProfile:
         return float(DipoleProfile(albedo, 1.0 - albedo, eta).total_reflectance[0])
@@ -119,7 +176,7 @@ def albedo_from_reflectance(model, reflectance, eta):
     Parameters
     ----------
     model : str
-        A model of :data:`PROFILE_MODELS`.
+        One of :data:`COLOR_MODELS`: ``exact`` (:func:`exact_total`) or a model of :data:`PROFILE_MODELS`.
     reflectance : array_like, shape (3,) or ()
         Target total reflectance (the "surface colour") per channel.
     eta : float
@@ -137,7 +194,7 @@ def albedo_from_reflectance(model, reflectance, eta):
     for c, value in enumerate(target):
         if not np.isfinite(value) or value <= 0 or value >= top:
             raise ConvsssError(f"colour {float(value)!r} in channel {CHANNELS[c]} is not reachable by the {model} "
-                               f"profile at eta={eta:g}: it must lie in (0, {top:.4f})")
+                               f"total at eta={eta:g}: it must lie in (0, {top:.4f})")
         if value <= model_total(model, low, eta):
             out[c] = low
             continue
@@ -146,7 +203,7 @@ def albedo_from_reflectance(model, reflectance, eta):
 
 
 def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom", warn=True):
-    """A :class:`~convsss.materials.Material` whose ``model`` profile has total reflectance ``color`` and whose
+    """A :class:`~convsss.materials.Material` whose total reflectance under ``model`` is ``color`` and whose
     reduced mean free path ``1/sigma_t'`` is ``mfp_mm`` (pbrt's ``reflectance`` + ``mfp``, Cycles' colour + radius).
 
     ``sigma_s' = alpha' / mfp`` and ``sigma_a = (1 - alpha') / mfp`` with ``alpha'`` from
@@ -155,13 +212,14 @@ def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom", warn=
     Parameters
     ----------
     color : array_like, shape (3,) or ()
-        Total reflectance per channel, in (0, the model's reflectance at alpha' = 1).
+        Total reflectance per channel, in (0, the reflectance at alpha' = 1).
     mfp_mm : array_like, shape (3,) or ()
         Reduced mean free path per channel, mm (> 0).
     eta : float
         Relative index of the boundary.
     model : str, optional
-        The profile model the colour is meant for (default: :data:`DEFAULT_PROFILE`).
+        What the colour is the total of (:data:`COLOR_MODELS`; default :data:`DEFAULT_COLOR_MODEL`, the exact
+        half-space's, which every model renders with the renderer's ``profile_total`` exact).
     name : str
     warn : bool
         Warn (:class:`~convsss.materials.OpticallyThinWarning`) when a channel's reduced albedo is low.
@@ -172,7 +230,7 @@ def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom", warn=
     """
     from ..materials import Material
 
-    model = check_model(model or DEFAULT_PROFILE)
+    model = check_color_model_name(model or DEFAULT_COLOR_MODEL)
     mfp = np.broadcast_to(np.asarray(mfp_mm, dtype=np.float64), (3,))
     if not np.all(np.isfinite(mfp)) or np.any(mfp <= 0):
         raise ConvsssError(f"mfp_mm={np.asarray(mfp_mm).tolist()} is not allowed: it must be finite and > 0 (mm)")

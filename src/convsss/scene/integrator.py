@@ -165,7 +165,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             return timer(name)
 
         with stage("samples"):
-            objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile)
+            objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total)
             check_camera(sensor)
             frame = sensor_frame(sensor, p.unit_mm)
             seen = first_hits(scene, sensor, frame, p.unit_mm, objects)

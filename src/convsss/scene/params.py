@@ -8,7 +8,7 @@ convolution, ``epsilon`` of the hierarchical method): every declaration has one 
 
 from ..errors import ConvsssError
 from ..parameters import Parameter, check_parameters
-from ..profiles.models import DEFAULT_PROFILE, parse_profile_spec
+from ..profiles.models import DEFAULT_PROFILE, DEFAULT_TOTAL, PROFILE_TOTALS, parse_profile_spec
 
 SPECULARS = ("bsdf", "phong", "none")
 #: Default ``profile_samples``: measured to keep the exitance's sample noise about 1 % (docs/benchmarks.md).
@@ -71,11 +71,17 @@ def render_parameters():
         Parameter("indirect_passes", int, 1, "Passes of light between translucent objects (another's or an object's "
                   "own light coming back): each builds the transports of the objects it lights once more; the stats "
                   "say how much the last pass changed.", low=1),
-        Parameter("incidence", str, "oblique", "How light entering a translucent object at a slant counts: oblique: "
-                  "each direction's irradiance weighted per channel by how much more a half-space of the medium sends "
-                  "back for light refracted in at that angle than for a normal beam (exact radiative transfer; up to "
-                  "1.7x at low albedo, 1 % for whole milk); normal: every direction as the profile's normal beam "
-                  "(the paper's).", choices=("oblique", "normal")),
+        Parameter("incidence", str, "oblique", "How light entering and leaving a translucent object at a slant "
+                  "counts: oblique: each direction's irradiance weighted per channel by how much more a half-space of "
+                  "the medium sends back for light refracted in at that angle than for a normal beam (exact radiative "
+                  "transfer; up to 1.7x at low albedo, 1 % for whole milk), and by reciprocity the exitance leaving "
+                  "towards each direction likewise; normal: every direction as the profile's normal beam, the "
+                  "exitance leaving as Lambert's law (the paper's).", choices=("oblique", "normal")),
+        Parameter("profile_total", str, DEFAULT_TOTAL, "Each profile model's total reflectance: exact: scaled per "
+                  "channel to that of a half-space of the medium by exact radiative transfer (the Monte Carlo slab's "
+                  "within its noise), the model keeping its shape; model: the model's own (the paper's dipole is "
+                  "7-10 % low under a dielectric, beam diffusion 10-14 % high at eta 1). A CSV profile is used as "
+                  "given.", choices=PROFILE_TOTALS),
         Parameter("sample_density", float, 4.0, "Surface samples per layer cell: N = sample_density * area / cell^2 "
                   "over the whole surface.", low=0.0, low_open=True),
         Parameter("profile_samples", float, PROFILE_SAMPLES, "Surface samples per effective area of the object's "

@@ -8,9 +8,11 @@ Mitsuba's own ``homogeneous`` medium, so that ``volpathmis`` renders the very sa
   in (0, 1), and the reduced mean free path ``1/sigma_t'`` in mm (pbrt's ``reflectance`` + ``mfp``, Cycles' colour
   + radius), inverted by :func:`~convsss.profiles.models.material_from_color` under
 
-  - ``model`` (string, default ``dipole``, the renderer's default profile): the profile model under which
-    ``color`` is the total reflectance. The file says it, not the integrator: the medium, and so the ground truth,
-    must not change with the integrator's ``profile`` (or ``--profile``);
+  - ``model`` (string, default ``exact``): what ``color`` is the total reflectance of: ``exact``, the half-space of
+    the medium by exact radiative transfer, which every profile model renders with the integrator's ``profile_total``
+    exact (its default), or a profile model's own total (for ``profile_total`` model). The file says it, not the
+    integrator: the medium, and so the ground truth, must not change with the integrator's ``profile`` (or
+    ``--profile``);
   - ``eta`` (float, default 1.3): the boundary's relative index the colour is meant for;
 
 - ``unit_mm`` (float, default 1): mm per scene unit, the convsss integrator's ``unit_mm`` (use one
@@ -29,9 +31,9 @@ Mitsuba cannot show a medium its shape's BSDF, so convsss checks the boundary wh
 (:func:`check_boundary`; plain Mitsuba does not): a ``dielectric`` or ``roughdielectric`` needs
 ``int_ior / ext_ior`` = the preset's eta (``convsss materials`` lists it) or the colour's ``eta``; a ``null``
 boundary (index-matched, eta 1) takes a preset's coefficients as they are, as ``convsss scene --boundary null``
-does, and a colour only with ``eta = 1``. The integrator's ``unit_mm`` must be the medium's. An object rendered
-with another profile model than its colour's ``model`` warns (:class:`ColorModelWarning`): its total reflectance
-is that model's, not quite the colour.
+does, and a colour only with ``eta = 1``. The integrator's ``unit_mm`` must be the medium's. An object that
+renders at another total than its colour's ``model`` warns (:class:`ColorModelWarning`): its total reflectance is
+then not quite the colour.
 
 The constructor returns Mitsuba's native medium; which medium came from which ``convsss`` properties is kept here
 (:func:`named_medium_of`), keyed by the medium's address and its coefficients, so an edited medium (the editor
@@ -47,7 +49,13 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material
 from ..materials import material as preset_material
-from ..profiles.models import DEFAULT_PROFILE, check_model, is_model, material_from_color
+from ..profiles.models import (
+    DEFAULT_COLOR_MODEL,
+    check_color_model_name,
+    color_of,
+    material_from_color,
+    rendered_total_of,
+)
 from .materials import medium_dict
 
 #: Mitsuba plugin name of the medium: ``<medium type="convsss_medium">``.
@@ -157,7 +165,7 @@ def named_medium(values):
     "preset 'Skin1'"
     >>> m = named_medium({"color": [0.8, 0.5, 0.3], "mfp_mm": 2.0})
     >>> m.model, m.eta, m.material.mfp_mm.tolist()
-    ('dipole', 1.3, [2.0, 2.0, 2.0])
+    ('exact', 1.3, [2.0, 2.0, 2.0])
     """
     values = dict(values)
     coefficients = [k for k in values if k in COEFFICIENTS]
@@ -194,13 +202,13 @@ def named_medium(values):
     if "color" not in values or "mfp_mm" not in values:
         raise ConvsssError(f"convsss_medium: {'color' if 'color' in values else 'mfp_mm'} without "
                            f"{'mfp_mm' if 'color' in values else 'color'}: a colour needs both")
-    model = values.get("model", DEFAULT_PROFILE)
+    model = values.get("model", DEFAULT_COLOR_MODEL)
     if not isinstance(model, str):
         raise ConvsssError(f"convsss_medium: model={model!r} is not allowed: give a model's name")
     eta = _number(values.get("eta", DEFAULT_ETA), "eta")
     color, mfp = _triple(values["color"], "color"), _triple(values["mfp_mm"], "mfp_mm")
     try:
-        model = check_model(model)
+        model = check_color_model_name(model)
         found = material_from_color(color, mfp, eta, model, name="color", warn=False)
     except ConvsssError as error:
         raise ConvsssError(f"convsss_medium: {error}") from None
@@ -284,16 +292,17 @@ def check_boundary(named, boundary, eta, name, unit_mm=None):
                            "name=\"unit_mm\"> for the integrator and the medium)")
 
 
-def check_color_model(named, spec, name):
+def check_color_model(named, spec, name, total):
     """Warn (:class:`ColorModelWarning`) when translucent shape ``name``, whose medium ``named`` is given by colour,
-    renders with the profile model ``spec`` other than the colour's (a tabulated profile: no warning)."""
-    if named is None or named.color is None or not is_model(spec) or spec == named.model:
+    renders with the profile ``spec`` and ``profile_total`` ``total`` at another total reflectance than the colour's
+    (:func:`~convsss.profiles.models.rendered_total_of`; a tabulated profile: no warning)."""
+    rendered = rendered_total_of(spec, total)
+    if named is None or named.color is None or rendered is None or rendered == named.model:
         return
-    total = named.material.profile(spec).total_reflectance
-    warnings.warn(f"translucent shape {name!r}: its colour {np.round(named.color, 4).tolist()} is inverted under "
-                  f"the {named.model} profile but it renders with {spec}, whose total reflectance is "
-                  f"{np.round(total, 4).tolist()}; give the medium model {spec!r} to match the colour under {spec}",
-                  ColorModelWarning, stacklevel=3)
+    warnings.warn(f"translucent shape {name!r}: its colour {np.round(named.color, 4).tolist()} is the "
+                  f"{named.model} total but it renders with the {rendered} total, "
+                  f"{np.round(color_of(named.material, rendered), 4).tolist()}; give the medium model {rendered!r} "
+                  "to match the colour", ColorModelWarning, stacklevel=3)
 
 
 def check_named_media(mi, scene):
