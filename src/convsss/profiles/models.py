@@ -30,7 +30,7 @@ DEFAULT_PROFILE = "dipole"
 #: What fixes a model's total reflectance (the renderer's ``profile_total``): ``exact``, that of the half-space of the
 #: medium by exact radiative transfer (:func:`exact_total`), the model keeping its shape; ``model``, the model's own.
 PROFILE_TOTALS = ("exact", "model")
-#: The renderer's default, chosen by measurement (docs/benchmarks.md, "Oblique incidence").
+#: The renderer's default, chosen by measurement (docs/benchmarks.md, "Exit and total").
 DEFAULT_TOTAL = "exact"
 #: What a colour (a total reflectance) is inverted under: the exact total, which every model renders with
 #: ``profile_total`` exact, or one model's own total.
@@ -65,11 +65,12 @@ def is_model(spec):
 
 
 def exact_total(albedo, eta):
-    """Per channel, the total reflectance of a half-space of reduced albedo ``albedo`` (3,) under a boundary of index
-    ``eta``, in the normalization of Eq. 1: ``rho(1) / T_d(eta)``, ``rho`` the exact escaped flux of Eq. O3
-    (:mod:`.incidence`; the Monte Carlo slab agrees within its noise)."""
-    albedo = np.broadcast_to(np.asarray(albedo, dtype=np.float64), (3,))
-    return np.array([float(escaped(a, eta, 1.0)) for a in albedo]) / diffuse_transmittance(eta)
+    """The total reflectance of a half-space of reduced albedo ``albedo`` (any shape, e.g. (3,) per channel) under a
+    boundary of index ``eta``, in the normalization of Eq. 1: ``rho(1) / T_d(eta)``, ``rho`` the exact escaped flux
+    of Eq. O3 (:mod:`.incidence`; the Monte Carlo slab agrees within its noise)."""
+    albedo = np.asarray(albedo, dtype=np.float64)
+    rho = np.array([float(escaped(a, eta, 1.0)) for a in albedo.ravel()]).reshape(albedo.shape)
+    return rho / diffuse_transmittance(eta)
 
 
 def model_profile(model, material, total="model"):
@@ -159,7 +160,7 @@ def model_total(model, albedo, eta):
     """Total reflectance (normalization of Eq. 1) of ``model`` (one of :data:`COLOR_MODELS`) for reduced albedo
     ``albedo`` at index ``eta``; it does not depend on the mean free path."""
     if model == "exact":
-        return float(exact_total(albedo, eta)[0])
+        return float(exact_total(albedo, eta))
     cls = PROFILE_MODELS[check_model(model)]
     if cls is DipoleProfile:
         return float(DipoleProfile(albedo, 1.0 - albedo, eta).total_reflectance[0])
