@@ -161,3 +161,11 @@ def test_profile_invert_round_trips_the_colour():
     np.testing.assert_allclose(np.add(report["sigma_s_prime"], report["sigma_a"]), 0.5, rtol=1e-12)
     bad = CliRunner().invoke(cli, ["profile", "invert", "--color", "0.8,0.5", "--mfp-mm", "2"])
     assert bad.exit_code == 2 and "give one number or three" in bad.output
+
+
+def test_the_clis_model_names_are_the_packages():
+    """The CLI names the models without importing the profiles at start-up: its lists must be the package's."""
+    from convsss.cli.options import COLOR_MODEL_NAMES, MODEL_NAMES
+    from convsss.profiles.models import COLOR_MODELS, PROFILE_MODELS
+
+    assert MODEL_NAMES == tuple(PROFILE_MODELS) and COLOR_MODEL_NAMES == COLOR_MODELS

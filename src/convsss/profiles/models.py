@@ -146,7 +146,7 @@ def profile_files(text):
     return [Path(s) for s in [default, *per_object.values()] if not is_model(s)]
 
 
-def resolve_profile(spec, material, total="model"):
+def resolve_profile(spec, material, total):
     """The :class:`~convsss.profiles.Profile` for ``spec`` (a model name or a CSV path) and ``material``; a model's
     total per ``total`` (:data:`PROFILE_TOTALS`), a tabulated profile's as given."""
     if is_model(spec):

@@ -220,16 +220,18 @@ class Entry:
 
     def __call__(self, cos):
         """``Color3f``: the entering weight per channel for Dr.Jit cosines ``cos`` on the outside."""
-        transmitted = fresnel_transmittance(self.eta, cos)
+        return self.gain(cos) * fresnel_transmittance(self.eta, cos)
+
+    def gain(self, cos):
+        """``Color3f``: the gain ``g`` per channel for Dr.Jit cosines ``cos`` on the outside (1 without an albedo)."""
         if self.gains is None:
-            return mi.Color3f(transmitted)
+            return dr.full(mi.Color3f, 1.0, dr.width(cos))
         inside = dr.safe_sqrt(1.0 - (1.0 - cos * cos) / (self.eta * self.eta))  # Snell's law
         x = dr.clip(inside, 0.0, 1.0) * (GAIN_NODES - 1)
         node = mi.UInt32(dr.minimum(dr.floor(x), GAIN_NODES - 2))
         t = x - mi.Float(node)
-        gain = [dr.lerp(dr.gather(mi.Float, self.gains, node + c * GAIN_NODES),
-                        dr.gather(mi.Float, self.gains, node + c * GAIN_NODES + 1), t) for c in range(3)]
-        return mi.Color3f(*gain) * transmitted
+        return mi.Color3f(*[dr.lerp(dr.gather(mi.Float, self.gains, node + c * GAIN_NODES),
+                                    dr.gather(mi.Float, self.gains, node + c * GAIN_NODES + 1), t) for c in range(3)])
 
 
 def keeps_irradiance(old, new, incidence):

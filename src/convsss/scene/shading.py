@@ -38,7 +38,7 @@ import numpy as np
 
 from ..backend import load_mitsuba
 from ..profiles.incidence import exit_normalization
-from .irradiance import Entry
+from .irradiance import Entry, fresnel_transmittance
 from .mis import power_heuristic
 from .objects import hit_indices
 
@@ -60,17 +60,17 @@ def _color(array):
 
 
 class Leaving:
-    """What of an object's exitance ``M`` leaves towards a direction at ``cos`` outside, per unit solid angle and
-    projected area: ``(1/pi) F_t(eta, cos)`` (paper Eq. 7), or, given the medium's reduced ``albedo`` (3,),
-    ``F_t g(mu_o) / (pi k)`` per channel (Eq. O4; the gain is :class:`~convsss.scene.irradiance.Entry`'s)."""
+    """The exit gain of a medium of reduced ``albedo`` (3,) behind a boundary of index ``eta``: ``g(mu_o) / k`` per
+    channel (Eq. O4), what multiplies paper Eq. 7's ``(1/pi) F_t(eta, w_o)`` (the gain is
+    :class:`~convsss.scene.irradiance.Entry`'s)."""
 
-    def __init__(self, eta, albedo=None):
+    def __init__(self, eta, albedo):
         self.entry = Entry(eta, albedo)
-        k = np.ones(3) if albedo is None else exit_normalization(np.asarray(albedo, dtype=np.float64), eta)
-        self.scale = mi.Color3f(*(1.0 / (np.pi * k)).tolist())
+        self.scale = mi.Color3f(*(1.0 / exit_normalization(np.asarray(albedo, dtype=np.float64), eta)).tolist())
 
     def __call__(self, cos):
-        return self.entry(cos) * self.scale
+        """``Color3f`` for Dr.Jit cosines ``cos`` on the outside."""
+        return self.entry.gain(cos) * self.scale
 
 
 class Shader:
@@ -95,7 +95,8 @@ class Shader:
         self.scene, self.objects, self.transports, self.params = scene, objects, transports, params
         self.screen = screen
         self.stop = stop
-        self.leaving = [Leaving(obj.eta, obj.material.albedo_prime if params.incidence == "oblique" else None)
+        #: Each object's exit gain (:class:`Leaving`), ``None`` with ``incidence`` normal (paper Eq. 7 alone).
+        self.leaving = [Leaving(obj.eta, obj.material.albedo_prime) if params.incidence == "oblique" else None
                         for obj in objects]
         self.ctx = mi.BSDFContext()
         self.ctx_reflect = mi.BSDFContext()
@@ -127,12 +128,15 @@ class Shader:
             eta = dr.select(on_object, obj.eta, eta)
         return which, eta
 
-    def _leaving(self, which, cos):
-        """Per lane, the weight of ``M`` towards the viewer at ``cos`` on the object ``which`` (:class:`Leaving`)."""
-        weight = dr.zeros(mi.Color3f, dr.width(cos))
+    def _leaving(self, which, eta, cos):
+        """Per lane, the weight of ``M`` towards the viewer at ``cos`` on the object ``which`` of index ``eta``:
+        ``(1/pi) F_t(eta, cos)`` (paper Eq. 7) times the object's exit gain (Eq. O4, :class:`Leaving`) if it has one."""
+        cos = dr.abs(cos)
+        gain = dr.full(mi.Color3f, 1.0, dr.width(cos))
         for k, leaving in enumerate(self.leaving):
-            weight = dr.select(which == k, leaving(dr.abs(cos)), weight)
-        return weight
+            if leaving is not None:
+                gain = dr.select(which == k, leaving(cos), gain)
+        return gain * fresnel_transmittance(eta, cos) / dr.pi
 
     def resolve(self, transports, deferred=None):
         """The radiance of the recorded hits (:attr:`deferred`, or the list given) now that ``transports`` exist:
@@ -292,7 +296,7 @@ class Shader:
             alive = active & si.is_valid() & (depth + 1 < max_depth)
             which, eta = self.classify(si)
             translucent = alive & (which >= 0)
-            weight = throughput * self._leaving(which, si.wi.z)  # times M: paper Eq. 7 (or O4)
+            weight = throughput * self._leaving(which, eta, si.wi.z)  # times M: paper Eq. 7 (or O4)
             known, sss = self._screen_exitance(si, which, translucent, weight)
             contribution += sss
             asked = translucent & ~known
