@@ -21,7 +21,8 @@ so that ``f - cap_r[f]`` is zero from ``r`` on and ``cap_r[f]`` is C^1:
   transfer function of the deposit and the read-back (``sinc^6`` per axis), which removes their blur to second order.
 - **Middle band**: summed directly (through a cell list) at the corners of the voxels of side ``g`` that hold
   clusters and that queries fall in, each corner once, when first needed, and read back trilinearly: it is smooth at
-  the scale ``r_1 > g``. (At a query in any other voxel it is summed where the query is.)
+  the scale ``r_1 > g``. (At a query in any other voxel, or among queries sparser than the voxels, it is summed
+  where the query is.)
 - **Core**: summed directly at each query point over the samples within ``r_1``.
 
 Both direct sums run over *clusters*: the samples merged in cubes of side ``s`` for the core, those clusters merged
@@ -481,6 +482,48 @@ def _voxel_set(view, origin, size, dims):
     return keys, values
 
 
+@numba.njit(inline="always")
+def _held_voxel(point, origin, size, dims, voxels):
+    """The voxel ``(i, j, m)`` of side ``size`` that ``point`` falls in, if it is one of the ``voxels``
+    (:func:`_voxel_set`); ``i`` is -1 otherwise."""
+    i = int(np.floor((point[0] - origin[0]) / size))
+    j = int(np.floor((point[1] - origin[1]) / size))
+    m = int(np.floor((point[2] - origin[2]) / size))
+    if i < 0 or j < 0 or m < 0 or i >= dims[0] or j >= dims[1] or m >= dims[2]:
+        return -1, j, m
+    if voxels[1][probe(voxels[0], voxels[1], (i * dims[1] + j) * dims[2] + m)] < 0:
+        return -1, j, m
+    return i, j, m
+
+
+@numba.njit(inline="always")
+def _corner_key(i, j, m, c, dims):
+    """The key of corner ``c`` (0-7, bits x y z) of voxel ``(i, j, m)``, on the lattice of ``dims + 1`` corners per
+    axis."""
+    return ((i + (c >> 2)) * (dims[1] + 1) + (j + ((c >> 1) & 1))) * (dims[2] + 1) + (m + (c & 1))
+
+
+@numba.njit(cache=True)
+def _missing_corners(view, origin, size, dims, voxels, table):
+    """How many distinct corners of the held voxels that the points ``view`` (K, 3) fall in are not yet in the corner
+    ``table``: the sums :func:`_corner_slots` would add."""
+    seen = empty(capacity(8 * view.shape[0]))
+    missing = 0
+    for k in range(view.shape[0]):
+        i, j, m = _held_voxel(view[k], origin, size, dims, voxels)
+        if i < 0:
+            continue
+        for c in range(8):
+            key = _corner_key(i, j, m, c, dims)
+            if table[1][probe(table[0], table[1], key)] >= 0:
+                continue
+            slot = probe(seen[0], seen[1], key)
+            if seen[1][slot] < 0:
+                seen[0][slot], seen[1][slot] = key, 0
+                missing += 1
+    return missing
+
+
 @numba.njit(cache=True)
 def _corner_slots(view, origin, size, dims, voxels, table, count, new_keys):
     """Per point of ``view`` (K, 3) in one of the ``voxels`` (:func:`_voxel_set`) of side ``size``, the slots of its
@@ -490,15 +533,11 @@ def _corner_slots(view, origin, size, dims, voxels, table, count, new_keys):
     slots = np.full((view.shape[0], 8), -1, dtype=np.int64)
     first = count
     for k in range(view.shape[0]):
-        i = int(np.floor((view[k, 0] - origin[0]) / size))
-        j = int(np.floor((view[k, 1] - origin[1]) / size))
-        m = int(np.floor((view[k, 2] - origin[2]) / size))
-        if i < 0 or j < 0 or m < 0 or i >= dims[0] or j >= dims[1] or m >= dims[2]:
-            continue
-        if voxels[1][probe(voxels[0], voxels[1], (i * dims[1] + j) * dims[2] + m)] < 0:
+        i, j, m = _held_voxel(view[k], origin, size, dims, voxels)
+        if i < 0:
             continue
         for c in range(8):
-            key = ((i + (c >> 2)) * (dims[1] + 1) + (j + ((c >> 1) & 1))) * (dims[2] + 1) + (m + (c & 1))
+            key = _corner_key(i, j, m, c, dims)
             slot = probe(table[0], table[1], key)
             if table[1][slot] < 0:
                 table[0][slot], table[1][slot] = key, count
@@ -555,7 +594,8 @@ class BandCorners:
     trilinear interpolation of the band at the voxel's corners (it is smooth at ``r_1``, larger than the voxels),
     each corner summed through the band's ``cells`` the first time a query needs it and kept (queries lie on the
     visible surface, a fraction of where the samples are, and neighbouring voxels share corners); at any other
-    query, the band summed where it is."""
+    query, the band summed where it is. A chunk of queries that would add more corners than it holds queries (queries
+    sparser than the voxels: a pixel wider than a voxel, scattered path vertices) is summed where its queries are."""
 
     #: Query points per call of the corner table (it keeps room for 8 new corners each).
     CHUNK = 1 << 14
@@ -573,6 +613,10 @@ class BandCorners:
         """``out +=`` the band at ``view`` (K, 3)."""
         for start in range(0, len(view), self.CHUNK):
             chunk = view[start:start + self.CHUNK]
+            if _missing_corners(chunk, self.origin, self.size, self.dims, self._voxels, self._table) > len(chunk):
+                # Queries sparser than the voxels: fewer sums where they are than at the corners they would add.
+                self.cells.add_sum(chunk, self.table, out[start:start + self.CHUNK])
+                continue
             self._reserve(self.count + 8 * len(chunk))
             fresh = np.empty(8 * len(chunk), dtype=np.int64)
             first = self.count
