@@ -221,12 +221,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
 
         transports, from_translucent, passes = self._translucent_passes(tracer, direct, irradiance, deferred, build,
                                                                         stage)
-        for k, s in enumerate(direct):
-            total = s.flux.sum(axis=0) + ((irradiance[k] - s.irradiance + from_translucent[k])
-                                          * s.area[:, None]).sum(axis=0)
-            per_object[k].update(samples=len(s), flux=total.tolist(), flux_direct=s.flux.sum(axis=0).tolist(),
-                                 flux_indirect=(total - s.flux.sum(axis=0)).tolist(),
-                                 flux_from_translucent=(from_translucent[k] * s.area[:, None]).sum(axis=0).tolist())
+        for k, s in enumerate(direct):  # flux = sum_i A_i E_i, as area @ E (no (N, 3) temporaries)
+            flux_direct, flux_translucent = s.area @ s.irradiance, s.area @ from_translucent[k]
+            total = s.area @ irradiance[k] + flux_translucent
+            per_object[k].update(samples=len(s), flux=total.tolist(), flux_direct=flux_direct.tolist(),
+                                 flux_indirect=(total - flux_direct).tolist(),
+                                 flux_from_translucent=flux_translucent.tolist())
         with stage("screen"):
             screen = ScreenExitance(sensor, shown, shown_at, transports, p.unit_mm)
         self._shader = Shader(scene, shown, transports, p, stop=self.should_stop, screen=screen)
@@ -283,8 +283,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                     tags, values = tracer.resolve(transports, records)
                     new = np.stack([np.bincount(tags, values[:, c], minlength=len(s)) for c in range(3)], axis=1)
                     new = np.maximum(new, 0.0)
-                    moved = np.abs(((new - light[k]) * s.area[:, None]).sum(axis=0))
-                    flux = ((irradiance[k] + new) * s.area[:, None]).sum(axis=0)
+                    moved = np.abs(s.area @ new - s.area @ light[k])
+                    flux = s.area @ irradiance[k] + s.area @ new
                     change = max(change, float(np.max(moved / np.maximum(flux, 1e-300))))
                     light[k] = new
             passes.append({"flux_change": change})

@@ -122,7 +122,9 @@ def mesh_square(shape, count, seed, stream=0):
     slot = np.clip(np.searchsorted(curve_cdf, t, side="right") - 1, 0, len(face) - 1)
     picked = order[slot]
     r = np.clip((t - curve_cdf[slot]) / pmf[picked], 0.0, 1.0)
-    rank = np.arange(n) - np.searchsorted(slot, slot)  # slot is sorted: the point's rank within its face
+    index = np.arange(n)
+    run_start = np.maximum.accumulate(np.where(np.r_[True, slot[1:] != slot[:-1]], index, 0))
+    rank = index - run_start  # slot is sorted: the point's rank within its face
     x = (rng.random(len(face))[picked] + rank * GOLDEN) % 1.0
     y = file_cdf[picked] + r * pmf[picked]
     return mi.Point2f(np.minimum(x, np.nextafter(1.0, 0.0)).astype(np.float32),

@@ -175,7 +175,7 @@ def mesh_topology(mi, shape):
     faces = index.reshape(-1)[faces]
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(edges, axis=0, return_counts=True)
+    _, counts = np.unique(edges[:, 0] * len(merged) + edges[:, 1], return_counts=True)  # one int64 key per edge
     watertight = bool(len(counts)) and bool(np.all(counts == 2))
     v0, v1, v2 = (merged[faces[:, k]] for k in range(3))
     signed_volume = float(np.sum(np.einsum("ij,ij->i", v0, np.cross(v1, v2))) / 6.0)
