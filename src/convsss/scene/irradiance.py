@@ -364,13 +364,15 @@ def _voxel_ranks(points, owners, spacing):
     keys, counts = empty(capacity(n))
     key = np.empty(n, dtype=np.int64)
     rank = np.empty(n, dtype=np.int64)
+    slot = 0
     for k in range(n):
         p = owners[k]
         i = np.int64(np.floor(points[p, 0] / spacing))
         j = np.int64(np.floor(points[p, 1] / spacing))
         m = np.int64(np.floor(points[p, 2] / spacing))
         key[k] = (i * 73856093) ^ (j * 19349663) ^ (m * 83492791)
-        slot = probe(keys, counts, key[k])
+        if k == 0 or key[k] != key[k - 1]:  # consecutive paths mostly share a voxel (the samples follow the surface)
+            slot = probe(keys, counts, key[k])
         if counts[slot] < 0:
             keys[slot], counts[slot] = key[k], 0
         rank[k] = counts[slot]
