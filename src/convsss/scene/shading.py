@@ -365,10 +365,14 @@ class Shader:
             return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
         owner, points, normals, beta, lanes, first = (dr.ravel(r).numpy() if i in (1, 2, 3) else r.numpy()
                                                       for i, r in enumerate(records))
-        owner, lanes, first = owner[:count], lanes[:count], first[:count]
-        points = points.reshape(-1, 3)[:count].astype(np.float64) * self.params.unit_mm
-        normals = normals.reshape(-1, 3)[:count].astype(np.float64)
-        beta = beta.reshape(-1, 3)[:count].astype(np.float64)
+        # The loop's threads record in any order; a path records its own hits in order: sorted by lane, the
+        # transports are asked the same points in the same order whatever the threads (and neighbouring pixels' hits
+        # together).
+        order = np.argsort(lanes[:count], kind="stable")
+        owner, lanes, first = owner[order], lanes[order], first[order]
+        points = points.reshape(-1, 3)[order].astype(np.float64) * self.params.unit_mm
+        normals = normals.reshape(-1, 3)[order].astype(np.float64)
+        beta = beta.reshape(-1, 3)[order].astype(np.float64)
         exitance = np.zeros((count, 3))
         for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
             mine = np.flatnonzero(owner == k)

@@ -595,7 +595,9 @@ class BandCorners:
     each corner summed through the band's ``cells`` the first time a query needs it and kept (queries lie on the
     visible surface, a fraction of where the samples are, and neighbouring voxels share corners); at any other
     query, the band summed where it is. A chunk of queries that would add more corners than it holds queries (queries
-    sparser than the voxels: a pixel wider than a voxel, scattered path vertices) is summed where its queries are."""
+    sparser than the voxels: a pixel wider than a voxel, scattered path vertices) is summed where its queries are. So
+    a point's value may depend on the batch it is asked in, by the band's interpolation error: the same queries in the
+    same order give the same bits (the shader sorts its hits)."""
 
     #: Query points per call of the corner table (it keeps room for 8 new corners each).
     CHUNK = 1 << 14
