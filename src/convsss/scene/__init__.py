@@ -5,6 +5,8 @@
 - :mod:`.objects`: translucent objects found in a loaded scene;
 - :mod:`.irradiance`: surface samples and their irradiance (paper Eq. 2);
 - :mod:`.shading`: camera rays (paper Eq. 7 plus boundary reflection, path tracing elsewhere);
+- :mod:`.screen`, :mod:`.mesh_exitance`: the transports' exitance at pixel centres and at mesh vertices, interpolated
+  for the shading;
 - :mod:`.integrator`: the ``convsss`` integrator and :func:`register`;
 - :mod:`.quick`: a scene around a mesh (camera, key light, back light, floor);
 - :mod:`.loading`: scene files with the integrator replaced and the film resized;

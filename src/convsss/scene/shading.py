@@ -23,8 +23,9 @@ a translucent object picks up its ``L_sss`` too.
 The path loop is one symbolic Dr.Jit loop (a single kernel for all bounces, as Mitsuba's own integrators). ``M`` is
 read inside it from the exitance at the visible pixel centres (:mod:`.screen`, built once per render) where that
 knows it; the other hits on translucent objects (silhouettes, hidden sides, grazing views) are recorded in the loop
-and asked of each object's transport through numpy afterwards (any transport works, whatever it is written in), their
-``beta (1/pi) F_t M`` added to their lanes.
+and looked up through numpy afterwards (any transport works, whatever it is written in), their ``beta (1/pi) F_t M``
+added to their lanes: from the object's mesh table (:mod:`.mesh_exitance`, ``M`` at the vertices of the faces hit,
+interpolated) where that knows ``M``, else from the transport.
 
 The same path tracer gives the light that reaches a translucent object after bouncing off the scene
 (:meth:`Shader.incident`, the indirect part of paper Eq. 2): paths start on the object's surface as at depth 1 of a
@@ -39,6 +40,7 @@ import numpy as np
 from ..backend import load_mitsuba
 from ..profiles.incidence import exit_normalization
 from .irradiance import Entry, fresnel_transmittance
+from .mesh_exitance import MeshExitance
 from .mis import power_heuristic
 from .objects import hit_indices
 
@@ -102,8 +104,10 @@ class Shader:
         self.ctx_reflect = mi.BSDFContext()
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
         self.lookups = 0
-        #: Hits on objects without a transport: ``(object, tag, points_mm, normals, weight)`` per batch.
+        #: Hits on objects without a transport: ``(object, tag, points_mm, normals, faces, weight)`` per batch.
         self.deferred = []
+        #: Per object whose shape is a mesh, ``(transport, its MeshExitance)`` (:meth:`_hit_exitance`).
+        self._tables = {}
         #: The last batch of camera rays and their first hits whose ``M`` came from a transport: ``(rays, lanes,
         #: M (K, 3))``, numpy but the rays (the ``exitance`` AOV reads them instead of asking again, :mod:`.aovs`).
         self.first_recorded = (None, np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
@@ -143,16 +147,31 @@ class Shader:
         ``(tags, values (K, 3))``, each hit's ``weight (1/pi) F_t M`` (paper Eq. 7) with its tag, hits of objects
         whose transport is still ``None`` left out."""
         tags, values = [np.zeros(0, dtype=np.int64)], [np.zeros((0, 3))]
-        for k, tag, points, normals, weight in self.deferred if deferred is None else deferred:
+        for k, tag, points, normals, faces, weight in self.deferred if deferred is None else deferred:
             if transports[k] is None:
                 continue
             tags.append(tag)
-            values.append(weight * self._exitance(transports[k], points, normals))
+            values.append(weight * self._hit_exitance(k, transports[k], points, normals, faces))
         return np.concatenate(tags), np.concatenate(values)
 
     def exitance(self, k, points, normals):
         """Object ``k``'s ``M`` (K, 3) at ``points`` (mm) with outward ``normals``, from its transport (numpy)."""
         return self._exitance(self.transports[k], points, normals)
+
+    def _hit_exitance(self, k, transport, points, normals, faces):
+        """Object ``k``'s ``M`` (K, 3) at path hits ``points`` (mm) with outward ``normals`` on its shape's ``faces``:
+        from its mesh table of ``transport`` (:class:`~.mesh_exitance.MeshExitance`, Eq. V2 where the mesh resolves
+        ``M``) when its shape is a mesh, else ``transport``'s."""
+        if not self.objects[k].shape.is_mesh():
+            return self._exitance(transport, points, normals)
+        held, table = self._tables.get(k, (None, None))
+        if held is not transport:
+            table = MeshExitance(self.objects[k], lambda p, n: self._exitance(transport, p, n), self.params.unit_mm)
+            self._tables[k] = (transport, table)
+        out = table(faces, points, normals)
+        if self.stop is not None and self.stop():  # the table may hold zeros where it was not asked: not kept
+            self._tables.pop(k)
+        return out
 
     def _exitance(self, transport, points, normals):
         """``transport``'s ``M`` at ``points`` (mm; (K, 3) numpy), asked in chunks of its ``query_batch``; chunks
@@ -268,13 +287,15 @@ class Shader:
     def _paths(self, sampler, ray, first_depth, room):
         """The path tracer's loop: ``(radiance, first hit's mask, records, count)``, ``records`` the (object, point,
         normal, weight ``beta (1/pi) F_t``, lane, whether it is a camera ray's first hit) of the first ``room`` of the
-        ``count`` hits on translucent objects whose ``M`` is not in the screen table (paper Eq. 7 without ``M``)."""
+        ``count`` hits on translucent objects whose ``M`` is not in the screen table (paper Eq. 7 without ``M``), and
+        the face each is on."""
         scene, params = self.scene, self.params
         n_lanes = dr.width(ray.o)
         max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         count = dr.zeros(mi.UInt32, 1)
         records = (dr.zeros(mi.Int32, room), dr.zeros(mi.Point3f, room), dr.zeros(mi.Vector3f, room),
-                   dr.zeros(mi.Color3f, room), dr.zeros(mi.UInt32, room), dr.zeros(mi.Bool, room))
+                   dr.zeros(mi.Color3f, room), dr.zeros(mi.UInt32, room), dr.zeros(mi.Bool, room),
+                   dr.zeros(mi.UInt32, room))
         lane = dr.arange(mi.UInt32, n_lanes)
         ray = mi.Ray3f(ray)
         total = dr.zeros(mi.Color3f, n_lanes)
@@ -303,7 +324,7 @@ class Shader:
             slot = dr.scatter_inc(count, mi.UInt32(0), asked)
             kept = asked & (slot < room)
             first = depth == 0
-            for record, value in zip(records, (which, si.p, mi.Vector3f(si.n), weight, lane, first)):
+            for record, value in zip(records, (which, si.p, mi.Vector3f(si.n), weight, lane, first, si.prim_index)):
                 dr.scatter(record, value, slot, kept)
 
             bsdf = si.bsdf(ray)
@@ -363,13 +384,13 @@ class Shader:
         the hits that were the first of a camera ray."""
         if count == 0:
             return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
-        owner, points, normals, beta, lanes, first = (dr.ravel(r).numpy() if i in (1, 2, 3) else r.numpy()
-                                                      for i, r in enumerate(records))
+        owner, points, normals, beta, lanes, first, faces = (dr.ravel(r).numpy() if i in (1, 2, 3) else r.numpy()
+                                                             for i, r in enumerate(records))
         # The loop's threads record in any order; a path records its own hits in order: sorted by lane, the
         # transports are asked the same points in the same order whatever the threads (and neighbouring pixels' hits
         # together).
         order = np.argsort(lanes[:count], kind="stable")
-        owner, lanes, first = owner[order], lanes[order], first[order]
+        owner, lanes, first, faces = owner[order], lanes[order], first[order], faces[order]
         points = points.reshape(-1, 3)[order].astype(np.float64) * self.params.unit_mm
         normals = normals.reshape(-1, 3)[order].astype(np.float64)
         beta = beta.reshape(-1, 3)[order].astype(np.float64)
@@ -380,10 +401,11 @@ class Shader:
                 continue
             if transport is None:
                 tag = lanes[mine]
-                self.deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation,
+                self.deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation, faces[mine],
                                       beta[mine] * self._weight[tag]))
                 continue
-            exitance[mine] = self._exitance(transport, points[mine], normals[mine] * obj.orientation)
+            exitance[mine] = self._hit_exitance(k, transport, points[mine], normals[mine] * obj.orientation,
+                                                faces[mine])
         dr.scatter_add(total, _color(beta * exitance), mi.UInt32(lanes.astype(np.uint32)))
         return lanes[first].astype(np.int64), exitance[first]
 

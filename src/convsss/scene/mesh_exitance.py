@@ -1,0 +1,119 @@
+"""Exitance once per vertex: a mesh's ``M`` at its vertices and face centroids, interpolated over each face.
+
+A render asks an object's transport for the exitance ``M`` of paper Eq. 7 wherever a path meets the object and the
+screen table (:mod:`.screen`) does not know it: silhouettes, sides the camera does not see, the object seen from the
+floor, indirect paths that come back to it. On the demo's bunny that is 260 k hits in the shading and 430 k in the
+indirect paths, against 35 k vertices and 70 k faces. Where the hits outnumber ``V + F``, the transport is asked
+instead once at every vertex ``v_i`` (outward normal: the area-weighted mean of its faces') and at every face's
+centroid ``c``, and a hit at barycentric coordinates ``b`` in a face is given
+
+    M(x) = sum_i b_i M(v_i) + 27 b_0 b_1 b_2 (M(c) - (1/3) sum_i M(v_i)),                             (Eq. V2)
+
+linear interpolation plus the cubic bubble that makes it exact at the centroid. The bubble's size measures how far
+``M`` is from linear over the face, so it is the face's error estimate: a face is used only where
+``|M(c) - (1/3) sum_i M(v_i)| <= TOLERANCE M(c)`` in every channel (the mesh resolves ``M`` there). Hits on the other
+faces, and on shapes that are not meshes, go to the transport.
+"""
+
+import numpy as np
+
+from ..backend import load_mitsuba
+
+mi = load_mitsuba()
+
+#: A face is interpolated (Eq. V2) when its centroid's ``M`` is within this fraction of its vertices' mean.
+TOLERANCE = 0.02
+
+
+class MeshExitance:
+    """Object ``obj``'s ``M`` at hits on its mesh: Eq. V2 on the faces that resolve ``M``, its transport elsewhere.
+
+    The table is filled lazily: a batch of hits asks the transport at the vertices and centroids of the faces it
+    lands on that are not filled yet, when those are fewer than its hits on them (else the transport is asked at the
+    hits themselves).
+
+    Parameters
+    ----------
+    obj : TranslucentObject
+        Its shape a mesh (``obj.shape.is_mesh()``).
+    exitance : callable
+        ``exitance(points_mm (K, 3), outward normals (K, 3)) -> M (K, 3)``: the object's transport.
+    unit_mm : float
+
+    Attributes
+    ----------
+    filled, known : (F,) bool
+        The faces whose vertices and centroid are asked, and of those the ones Eq. V2 is used on.
+    queries : int
+        Transport queries made to fill the table.
+    """
+
+    def __init__(self, obj, exitance, unit_mm):
+        self.exitance = exitance
+        params = mi.traverse(obj.shape)
+        vertex = np.asarray(params["vertex_positions"], dtype=np.float64).reshape(-1, 3)
+        self.face = np.asarray(params["faces"], dtype=np.int64).reshape(-1, 3)
+        matrix = np.asarray(obj.to_world, dtype=np.float64)
+        self.vertex = (vertex @ matrix[:3, :3].T + matrix[:3, 3]) * unit_mm
+        a, b, c = (self.vertex[self.face[:, i]] for i in range(3))
+        # The winding's normal mapped to the world (a mirroring map reverses the winding), turned outwards.
+        cross = np.cross(b - a, c - a) * (np.sign(np.linalg.det(matrix[:3, :3])) * obj.orientation)
+        self.twice_area = np.linalg.norm(cross, axis=1)
+        self.vertex_normal = np.zeros_like(self.vertex)
+        for i in range(3):
+            np.add.at(self.vertex_normal, self.face[:, i], cross)
+        self.vertex_normal /= np.maximum(np.linalg.norm(self.vertex_normal, axis=1), 1e-300)[:, None]
+        self.face_normal = cross / np.maximum(self.twice_area, 1e-300)[:, None]
+        self.at_vertex = np.zeros((len(self.vertex), 3))
+        self.bubble = np.zeros((len(self.face), 3))
+        self.vertex_filled = np.zeros(len(self.vertex), dtype=bool)
+        self.filled = np.zeros(len(self.face), dtype=bool)
+        self.known = np.zeros(len(self.face), dtype=bool)
+        self.queries = 0
+
+    def __call__(self, faces, points, normals):
+        """``M`` (K, 3) at the hits ``points`` (mm) with outward ``normals`` on the faces ``faces`` (K,)."""
+        faces = np.asarray(faces, dtype=np.int64)
+        self._fill(faces)
+        known = self.known[faces]
+        out = np.zeros((len(faces), 3))
+        f = faces[known]
+        corner = self.face[f]
+        b = barycentric(points[known], *(self.vertex[corner[:, i]] for i in range(3)))
+        linear = sum(b[:, i:i + 1] * self.at_vertex[corner[:, i]] for i in range(3))
+        out[known] = np.maximum(linear + 27.0 * np.prod(b, axis=1)[:, None] * self.bubble[f], 0.0)  # Eq. V2
+        if not np.all(known):
+            out[~known] = self.exitance(points[~known], normals[~known])
+        return out
+
+    def _fill(self, faces):
+        """Asks the transport at the vertices and centroids of the unfilled ``faces`` when they are fewer than the
+        hits on those faces, and marks each face known where its bubble is within :data:`TOLERANCE`."""
+        new_hits = faces[~self.filled[faces]]
+        new = np.unique(new_hits)
+        vertices = np.unique(self.face[new])
+        vertices = vertices[~self.vertex_filled[vertices]]
+        if len(new) == 0 or len(new) + len(vertices) > len(new_hits):
+            return
+        self.at_vertex[vertices] = self.exitance(self.vertex[vertices], self.vertex_normal[vertices])
+        self.vertex_filled[vertices] = True
+        centroid = self.vertex[self.face[new]].mean(axis=1)
+        at_centroid = self.exitance(centroid, self.face_normal[new])
+        self.bubble[new] = at_centroid - self.at_vertex[self.face[new]].mean(axis=1)
+        self.known[new] = (self.twice_area[new] > 0) & np.all(np.abs(self.bubble[new]) <= TOLERANCE * at_centroid,
+                                                              axis=1)
+        self.filled[new] = True
+        self.queries += len(new) + len(vertices)
+
+
+def barycentric(p, a, b, c):
+    """(K, 3) barycentric coordinates of the points ``p`` (K, 3) projected onto the triangles ``a, b, c`` (K, 3 each),
+    clamped to the triangle (a point that float rounding put a little outside counts at its edge)."""
+    e1, e2, d = b - a, c - a, p - a
+    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    d1, d2 = (d * e1).sum(1), (d * e2).sum(1)
+    det = d11 * d22 - d12 * d12
+    u = (d22 * d1 - d12 * d2) / det
+    v = (d11 * d2 - d12 * d1) / det
+    out = np.maximum(np.stack([1.0 - u - v, u, v], axis=1), 0.0)
+    return out / out.sum(axis=1, keepdims=True)
