@@ -9,7 +9,7 @@ import pytest
 
 import convsss
 from convsss.scene.materials import translucent
-from convsss.scene.mesh_exitance import TOLERANCE, MeshExitance, barycentric
+from convsss.scene.mesh_exitance import TOLERANCE, MeshExitance
 
 
 def icosphere(subdivisions, radius=1.0):
@@ -72,14 +72,6 @@ def _hits(vertex, face, count, seed=0):
     points = np.einsum("ki,kij->kj", b, vertex[face[faces]])
     normals = points / np.linalg.norm(points, axis=1, keepdims=True)
     return faces, points, normals
-
-
-def test_barycentric_coordinates_give_the_point_back():
-    rng = np.random.default_rng(1)
-    a, b, c = rng.normal(size=(3, 100, 3))
-    w = rng.dirichlet((1.0, 1.0, 1.0), 100)
-    p = w[:, :1] * a + w[:, 1:2] * b + w[:, 2:] * c
-    np.testing.assert_allclose(barycentric(p, a, b, c), w, atol=1e-9)
 
 
 def test_a_linear_exitance_is_reproduced_on_every_face(mi):

@@ -15,6 +15,7 @@ linear interpolation plus the cubic bubble that makes it exact at the centroid. 
 faces, and on shapes that are not meshes, go to the transport.
 """
 
+import numba
 import numpy as np
 
 from ..backend import load_mitsuba
@@ -75,13 +76,9 @@ class MeshExitance:
         """``M`` (K, 3) at the hits ``points`` (mm) with outward ``normals`` on the faces ``faces`` (K,)."""
         faces = np.asarray(faces, dtype=np.int64)
         self._fill(faces)
-        known = self.known[faces]
         out = np.zeros((len(faces), 3))
-        f = faces[known]
-        corner = self.face[f]
-        b = barycentric(points[known], *(self.vertex[corner[:, i]] for i in range(3)))
-        linear = sum(b[:, i:i + 1] * self.at_vertex[corner[:, i]] for i in range(3))
-        out[known] = np.maximum(linear + 27.0 * np.prod(b, axis=1)[:, None] * self.bubble[f], 0.0)  # Eq. V2
+        known = _interpolate(self.face, self.vertex, self.at_vertex, self.bubble, self.known, faces,
+                             np.ascontiguousarray(points, dtype=np.float64), out)
         if not np.all(known):
             out[~known] = self.exitance(points[~known], normals[~known])
         return out
@@ -90,8 +87,8 @@ class MeshExitance:
         """Asks the transport at the vertices and centroids of the unfilled ``faces`` when they are fewer than the
         hits on those faces, and marks each face known where its bubble is within :data:`TOLERANCE`."""
         new_hits = faces[~self.filled[faces]]
-        new = np.unique(new_hits)
-        vertices = np.unique(self.face[new])
+        new = np.flatnonzero(np.bincount(new_hits, minlength=len(self.face)))
+        vertices = np.flatnonzero(np.bincount(self.face[new].ravel(), minlength=len(self.vertex)))
         vertices = vertices[~self.vertex_filled[vertices]]
         if len(new) == 0 or len(new) + len(vertices) > len(new_hits):
             return
@@ -106,14 +103,33 @@ class MeshExitance:
         self.queries += len(new) + len(vertices)
 
 
-def barycentric(p, a, b, c):
-    """(K, 3) barycentric coordinates of the points ``p`` (K, 3) projected onto the triangles ``a, b, c`` (K, 3 each),
-    clamped to the triangle (a point that float rounding put a little outside counts at its edge)."""
-    e1, e2, d = b - a, c - a, p - a
-    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
-    d1, d2 = (d * e1).sum(1), (d * e2).sum(1)
-    det = d11 * d22 - d12 * d12
-    u = (d22 * d1 - d12 * d2) / det
-    v = (d11 * d2 - d12 * d1) / det
-    out = np.maximum(np.stack([1.0 - u - v, u, v], axis=1), 0.0)
-    return out / out.sum(axis=1, keepdims=True)
+@numba.njit(cache=True, parallel=True)
+def _interpolate(face, vertex, at_vertex, bubble, known_face, faces, points, out):
+    """Eq. V2 at each hit ``points[k]`` on face ``faces[k]`` into ``out[k]`` where the face is known; returns which
+    hits were (K,) bool. The barycentric coordinates are those of the point projected onto the face's plane,
+    clamped to the face (float rounding may put a hit a little outside it)."""
+    known = np.zeros(len(faces), dtype=np.bool_)
+    for k in numba.prange(len(faces)):
+        f = faces[k]
+        if not known_face[f]:
+            continue
+        known[k] = True
+        i, j, m = face[f, 0], face[f, 1], face[f, 2]
+        d11 = d12 = d22 = d1 = d2 = 0.0
+        for c in range(3):
+            e1, e2, d = vertex[j, c] - vertex[i, c], vertex[m, c] - vertex[i, c], points[k, c] - vertex[i, c]
+            d11 += e1 * e1
+            d12 += e1 * e2
+            d22 += e2 * e2
+            d1 += d * e1
+            d2 += d * e2
+        det = d11 * d22 - d12 * d12
+        u = max((d22 * d1 - d12 * d2) / det, 0.0)
+        v = max((d11 * d2 - d12 * d1) / det, 0.0)
+        w = max(1.0 - u - v, 0.0)
+        total = u + v + w
+        u, v, w = u / total, v / total, w / total
+        for c in range(3):
+            value = w * at_vertex[i, c] + u * at_vertex[j, c] + v * at_vertex[m, c] + 27.0 * u * v * w * bubble[f, c]
+            out[k, c] = max(value, 0.0)
+    return known
