@@ -277,10 +277,10 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         light = [np.zeros_like(e) for e in irradiance]
         passes = []
         while any(deferred) and len(passes) < self.params.indirect_passes and not self.should_stop():
-            change = 0.0
+            change, tables = 0.0, {}  # the mesh tables of this pass's transports
             with stage("indirect"):
                 for k, (s, records) in enumerate(zip(samples, deferred)):
-                    tags, values = tracer.resolve(transports, records)
+                    tags, values = tracer.resolve(transports, records, tables)
                     new = np.stack([np.bincount(tags, values[:, c], minlength=len(s)) for c in range(3)], axis=1)
                     new = np.maximum(new, 0.0)
                     moved = np.abs(s.area @ new - s.area @ light[k])

@@ -106,7 +106,7 @@ class Shader:
         self.lookups = 0
         #: Hits on objects without a transport: ``(object, tag, points_mm, normals, faces, weight)`` per batch.
         self.deferred = []
-        #: Per object whose shape is a mesh, ``(transport, its MeshExitance)`` (:meth:`_hit_exitance`).
+        #: The mesh tables of :attr:`transports`, by object (:meth:`_hit_exitance`).
         self._tables = {}
         #: The last batch of camera rays and their first hits whose ``M`` came from a transport: ``(rays, lanes,
         #: M (K, 3))``, numpy but the rays (the ``exitance`` AOV reads them instead of asking again, :mod:`.aovs`).
@@ -142,35 +142,36 @@ class Shader:
                 gain = dr.select(which == k, leaving(cos), gain)
         return gain * fresnel_transmittance(eta, cos) / dr.pi
 
-    def resolve(self, transports, deferred=None):
+    def resolve(self, transports, deferred=None, tables=None):
         """The radiance of the recorded hits (:attr:`deferred`, or the list given) now that ``transports`` exist:
         ``(tags, values (K, 3))``, each hit's ``weight (1/pi) F_t M`` (paper Eq. 7) with its tag, hits of objects
-        whose transport is still ``None`` left out."""
+        whose transport is still ``None`` left out. ``tables`` (a dict, filled here) holds the mesh tables of these
+        ``transports`` for the next call on the same ones."""
+        tables = {} if tables is None else tables
         tags, values = [np.zeros(0, dtype=np.int64)], [np.zeros((0, 3))]
         for k, tag, points, normals, faces, weight in self.deferred if deferred is None else deferred:
             if transports[k] is None:
                 continue
             tags.append(tag)
-            values.append(weight * self._hit_exitance(k, transports[k], points, normals, faces))
+            values.append(weight * self._hit_exitance(k, transports[k], points, normals, faces, tables))
         return np.concatenate(tags), np.concatenate(values)
 
     def exitance(self, k, points, normals):
         """Object ``k``'s ``M`` (K, 3) at ``points`` (mm) with outward ``normals``, from its transport (numpy)."""
         return self._exitance(self.transports[k], points, normals)
 
-    def _hit_exitance(self, k, transport, points, normals, faces):
+    def _hit_exitance(self, k, transport, points, normals, faces, tables):
         """Object ``k``'s ``M`` (K, 3) at path hits ``points`` (mm) with outward ``normals`` on its shape's ``faces``:
         from its mesh table of ``transport`` (:class:`~.mesh_exitance.MeshExitance`, Eq. V2 where the mesh resolves
-        ``M``) when its shape is a mesh, else ``transport``'s."""
+        ``M``; kept in ``tables[k]``) when its shape is a mesh, else ``transport``'s."""
         if not self.objects[k].shape.is_mesh():
             return self._exitance(transport, points, normals)
-        held, table = self._tables.get(k, (None, None))
-        if held is not transport:
-            table = MeshExitance(self.objects[k], lambda p, n: self._exitance(transport, p, n), self.params.unit_mm)
-            self._tables[k] = (transport, table)
-        out = table(faces, points, normals)
+        if k not in tables:
+            tables[k] = MeshExitance(self.objects[k], lambda p, n: self._exitance(transport, p, n),
+                                     self.params.unit_mm)
+        out = tables[k](faces, points, normals)
         if self.stop is not None and self.stop():  # the table may hold zeros where it was not asked: not kept
-            self._tables.pop(k)
+            tables.pop(k)
         return out
 
     def _exitance(self, transport, points, normals):
@@ -405,7 +406,7 @@ class Shader:
                                       beta[mine] * self._weight[tag]))
                 continue
             exitance[mine] = self._hit_exitance(k, transport, points[mine], normals[mine] * obj.orientation,
-                                                faces[mine])
+                                                faces[mine], self._tables)
         dr.scatter_add(total, _color(beta * exitance), mi.UInt32(lanes.astype(np.uint32)))
         return lanes[first].astype(np.int64), exitance[first]
 
