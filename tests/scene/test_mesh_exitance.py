@@ -9,7 +9,7 @@ import pytest
 
 import convsss
 from convsss.scene.materials import translucent
-from convsss.scene.mesh_exitance import TOLERANCE, MeshExitance
+from convsss.scene.mesh_exitance import TOLERANCE, MeshExitance, usable
 
 
 def icosphere(subdivisions, radius=1.0):
@@ -173,3 +173,13 @@ def test_render_with_the_mesh_table_matches_the_transport(mi, sphere_scene, tmp_
     mask = without.sum(axis=2) > 0
     ratio = with_table[mask].sum(axis=0) / without[mask].sum(axis=0)
     np.testing.assert_allclose(ratio, 1.0, atol=1e-3)
+
+
+def test_a_table_that_does_not_fit_in_memory_is_not_made(mi, monkeypatch):
+    import convsss.memory
+
+    obj, _, _ = _mesh_object(mi, 2)
+    assert usable(obj)
+    monkeypatch.setattr(convsss.memory, "available_memory", lambda: 10_000)
+    assert not usable(obj)
+    assert not usable(SimpleNamespace(shape=mi.load_dict({"type": "sphere"})))

@@ -2,28 +2,47 @@
 
 A render asks an object's transport for the exitance ``M`` of paper Eq. 7 wherever a path meets the object and the
 screen table (:mod:`.screen`) does not know it: silhouettes, sides the camera does not see, the object seen from the
-floor, indirect paths that come back to it. On the demo's bunny that is 260 k hits in the shading and 430 k in the
-indirect paths, against 35 k vertices and 70 k faces. Where the hits outnumber ``V + F``, the transport is asked
-instead once at every vertex ``v_i`` (outward normal: the area-weighted mean of its faces') and at every face's
-centroid ``c``, and a hit at barycentric coordinates ``b`` in a face is given
+floor, indirect paths that come back to it. On the demo's bunny that is 263 k hits on 34 k of its 70 k faces in the
+shading, and 430 k in the indirect paths. Where the hits on faces outnumber their vertices and centroids, the
+transport is asked instead once at each of those vertices ``v_i`` (outward normal: the area-weighted mean of its
+faces') and centroids ``c``, and a hit at barycentric coordinates ``b`` in a face is given
 
     M(x) = sum_i b_i M(v_i) + 27 b_0 b_1 b_2 (M(c) - (1/3) sum_i M(v_i)),                             (Eq. V2)
 
 linear interpolation plus the cubic bubble that makes it exact at the centroid. The bubble's size measures how far
 ``M`` is from linear over the face, so it is the face's error estimate: a face is used only where
 ``|M(c) - (1/3) sum_i M(v_i)| <= TOLERANCE M(c)`` in every channel (the mesh resolves ``M`` there). Hits on the other
-faces, and on shapes that are not meshes, go to the transport.
+faces, on shapes that are not meshes and on meshes whose table would not fit in memory, go to the transport.
 """
 
 import numba
 import numpy as np
 
 from ..backend import load_mitsuba
+from ..errors import ConvsssError
+from ..memory import check_memory
 
 mi = load_mitsuba()
 
 #: A face is interpolated (Eq. V2) when its centroid's ``M`` is within this fraction of its vertices' mean.
 TOLERANCE = 0.02
+#: Bytes the table holds per vertex (position, normal, ``M``, a flag) and per face (corners, bubble, two flags).
+BYTES_PER_VERTEX, BYTES_PER_FACE = 73, 50
+#: Faces whose normals are summed at once into their vertices' (bounds the temporaries).
+CHUNK_FACES = 1 << 20
+
+
+def usable(obj):
+    """Whether ``obj`` can have a :class:`MeshExitance`: its shape is a mesh whose table fits in memory (else its
+    hits are asked of the transport, as without a table)."""
+    if not obj.shape.is_mesh():
+        return False
+    size = BYTES_PER_VERTEX * int(obj.shape.vertex_count()) + BYTES_PER_FACE * int(obj.shape.face_count())
+    try:
+        check_memory(size, "the mesh exitance table", "")
+    except ConvsssError:
+        return False
+    return True
 
 
 class MeshExitance:
@@ -36,7 +55,7 @@ class MeshExitance:
     Parameters
     ----------
     obj : TranslucentObject
-        Its shape a mesh (``obj.shape.is_mesh()``).
+        :func:`usable`.
     exitance : callable
         ``exitance(points_mm (K, 3), outward normals (K, 3)) -> M (K, 3)``: the object's transport.
     unit_mm : float
@@ -56,21 +75,26 @@ class MeshExitance:
         self.face = np.asarray(params["faces"], dtype=np.int64).reshape(-1, 3)
         matrix = np.asarray(obj.to_world, dtype=np.float64)
         self.vertex = (vertex @ matrix[:3, :3].T + matrix[:3, 3]) * unit_mm
-        a, b, c = (self.vertex[self.face[:, i]] for i in range(3))
         # The winding's normal mapped to the world (a mirroring map reverses the winding), turned outwards.
-        cross = np.cross(b - a, c - a) * (np.sign(np.linalg.det(matrix[:3, :3])) * obj.orientation)
-        self.twice_area = np.linalg.norm(cross, axis=1)
+        self.outward = np.sign(np.linalg.det(matrix[:3, :3])) * obj.orientation
         self.vertex_normal = np.zeros_like(self.vertex)
-        for i in range(3):
-            np.add.at(self.vertex_normal, self.face[:, i], cross)
+        for start in range(0, len(self.face), CHUNK_FACES):
+            face = self.face[start:start + CHUNK_FACES]
+            cross = self._cross(face)
+            for i in range(3):
+                np.add.at(self.vertex_normal, face[:, i], cross)
         self.vertex_normal /= np.maximum(np.linalg.norm(self.vertex_normal, axis=1), 1e-300)[:, None]
-        self.face_normal = cross / np.maximum(self.twice_area, 1e-300)[:, None]
         self.at_vertex = np.zeros((len(self.vertex), 3))
         self.bubble = np.zeros((len(self.face), 3))
         self.vertex_filled = np.zeros(len(self.vertex), dtype=bool)
         self.filled = np.zeros(len(self.face), dtype=bool)
         self.known = np.zeros(len(self.face), dtype=bool)
         self.queries = 0
+
+    def _cross(self, face):
+        """(K, 3) outward normals of the faces ``face`` (K, 3), twice their area long."""
+        a, b, c = (self.vertex[face[:, i]] for i in range(3))
+        return np.cross(b - a, c - a) * self.outward
 
     def __call__(self, faces, points, normals):
         """``M`` (K, 3) at the hits ``points`` (mm) with outward ``normals`` on the faces ``faces`` (K,)."""
@@ -94,11 +118,12 @@ class MeshExitance:
             return
         self.at_vertex[vertices] = self.exitance(self.vertex[vertices], self.vertex_normal[vertices])
         self.vertex_filled[vertices] = True
+        cross = self._cross(self.face[new])
+        twice_area = np.linalg.norm(cross, axis=1)
         centroid = self.vertex[self.face[new]].mean(axis=1)
-        at_centroid = self.exitance(centroid, self.face_normal[new])
+        at_centroid = self.exitance(centroid, cross / np.maximum(twice_area, 1e-300)[:, None])
         self.bubble[new] = at_centroid - self.at_vertex[self.face[new]].mean(axis=1)
-        self.known[new] = (self.twice_area[new] > 0) & np.all(np.abs(self.bubble[new]) <= TOLERANCE * at_centroid,
-                                                              axis=1)
+        self.known[new] = (twice_area > 0) & np.all(np.abs(self.bubble[new]) <= TOLERANCE * at_centroid, axis=1)
         self.filled[new] = True
         self.queries += len(new) + len(vertices)
 

@@ -40,7 +40,7 @@ import numpy as np
 from ..backend import load_mitsuba
 from ..profiles.incidence import exit_normalization
 from .irradiance import Entry, fresnel_transmittance
-from .mesh_exitance import MeshExitance
+from .mesh_exitance import MeshExitance, usable
 from .mis import power_heuristic
 from .objects import hit_indices
 
@@ -163,8 +163,8 @@ class Shader:
     def _hit_exitance(self, k, transport, points, normals, faces, tables):
         """Object ``k``'s ``M`` (K, 3) at path hits ``points`` (mm) with outward ``normals`` on its shape's ``faces``:
         from its mesh table of ``transport`` (:class:`~.mesh_exitance.MeshExitance`, Eq. V2 where the mesh resolves
-        ``M``; kept in ``tables[k]``) when its shape is a mesh, else ``transport``'s."""
-        if not self.objects[k].shape.is_mesh():
+        ``M``; kept in ``tables[k]``) when it can have one, else ``transport``'s."""
+        if not usable(self.objects[k]):
             return self._exitance(transport, points, normals)
         if k not in tables:
             tables[k] = MeshExitance(self.objects[k], lambda p, n: self._exitance(transport, p, n),
