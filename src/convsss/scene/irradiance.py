@@ -89,6 +89,13 @@ def morton_order(points):
     return np.argsort(code, kind="stable")
 
 
+def mesh_arrays(shape):
+    """A Mitsuba mesh's vertices (V, 3) float64, in its own space, and faces (F, 3) int64."""
+    params = mi.traverse(shape)
+    return (np.asarray(params["vertex_positions"], dtype=np.float64).reshape(-1, 3),
+            np.asarray(params["faces"], dtype=np.int64).reshape(-1, 3))
+
+
 def mesh_square(shape, count, seed, stream=0):
     """Points of ``[0,1]^2`` (``k^2 >= count`` of them, as :func:`stratified_square`) that Mitsuba's
     ``mesh.sample_position`` maps to points stratified over the mesh's surface at the scale of its faces or finer.
@@ -105,9 +112,7 @@ def mesh_square(shape, count, seed, stream=0):
     large face are spread in both directions. Each point is uniform over the surface, so every estimate stays
     unbiased.
     """
-    params = mi.traverse(shape)
-    vertex = np.asarray(params["vertex_positions"], dtype=np.float64).reshape(-1, 3)
-    face = np.asarray(params["faces"], dtype=np.int64).reshape(-1, 3)
+    vertex, face = mesh_arrays(shape)
     a, b, c = vertex[face[:, 0]], vertex[face[:, 1]], vertex[face[:, 2]]
     pmf = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
     pmf /= pmf.sum()

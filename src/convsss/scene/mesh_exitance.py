@@ -18,11 +18,9 @@ faces, on shapes that are not meshes and on meshes whose table would not fit in 
 import numba
 import numpy as np
 
-from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..memory import check_memory
-
-mi = load_mitsuba()
+from .irradiance import mesh_arrays
 
 #: A face is interpolated (Eq. V2) when its centroid's ``M`` is within this fraction of its vertices' mean.
 TOLERANCE = 0.02
@@ -70,9 +68,7 @@ class MeshExitance:
 
     def __init__(self, obj, exitance, unit_mm):
         self.exitance = exitance
-        params = mi.traverse(obj.shape)
-        vertex = np.asarray(params["vertex_positions"], dtype=np.float64).reshape(-1, 3)
-        self.face = np.asarray(params["faces"], dtype=np.int64).reshape(-1, 3)
+        vertex, self.face = mesh_arrays(obj.shape)
         matrix = np.asarray(obj.to_world, dtype=np.float64)
         self.vertex = (vertex @ matrix[:3, :3].T + matrix[:3, 3]) * unit_mm
         # The winding's normal mapped to the world (a mirroring map reverses the winding), turned outwards.

@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material
 from ..profiles.models import DEFAULT_TOTAL, PROFILE_MODELS, parse_profile_spec, resolve_profile
-from .irradiance import area_scale, sample_surface
+from .irradiance import area_scale, mesh_arrays, sample_surface
 from .presets import check_boundary, check_color_model, named_medium_of
 
 #: Mitsuba class names of the boundaries a translucent object may have.
@@ -157,16 +157,14 @@ def boundary_eta(mi, bsdf, name):
     return kind, eta
 
 
-def mesh_topology(mi, shape):
+def mesh_topology(shape):
     """``(watertight, signed_volume)`` of a mesh in its own space (the world's, or its shapegroup's).
 
     Vertices closer than 1e-7 of the mesh's extent are merged first (loaders split vertices at normal or texture
     seams). Watertight: every edge joins exactly two faces. The signed volume ``sum_f v0 . (v1 x v2) / 6`` is
     positive when the faces wind around outward normals.
     """
-    params = mi.traverse(shape)
-    positions = np.asarray(params["vertex_positions"], dtype=np.float64).reshape(-1, 3)
-    faces = np.asarray(params["faces"], dtype=np.int64).reshape(-1, 3)
+    positions, faces = mesh_arrays(shape)
     if len(faces) == 0:
         return False, 0.0
     extent = max(float(np.max(np.ptp(positions, axis=0))), 1e-30)
@@ -192,7 +190,7 @@ def _surface(mi, shape, name):
                           "surface: the diffusion model needs an object that bounds a volume", MeshWarning,
                           stacklevel=4)
         return 1.0, closed
-    watertight, volume = mesh_topology(mi, shape)
+    watertight, volume = mesh_topology(shape)
     if not watertight:
         warnings.warn(f"translucent mesh {name!r} is not watertight (some edges do not join exactly two faces): "
                       "irradiance leaks through its holes and its inside is ill-defined", MeshWarning, stacklevel=4)

@@ -163,12 +163,13 @@ class Shader:
     def _hit_exitance(self, k, transport, points, normals, faces, tables):
         """Object ``k``'s ``M`` (K, 3) at path hits ``points`` (mm) with outward ``normals`` on its shape's ``faces``:
         from its mesh table of ``transport`` (:class:`~.mesh_exitance.MeshExitance`, Eq. V2 where the mesh resolves
-        ``M``; kept in ``tables[k]``) when it can have one, else ``transport``'s."""
-        if not usable(self.objects[k]):
-            return self._exitance(transport, points, normals)
+        ``M``; kept in ``tables[k]``, None where the object can have none) when it can have one, else
+        ``transport``'s."""
         if k not in tables:
             tables[k] = MeshExitance(self.objects[k], lambda p, n: self._exitance(transport, p, n),
-                                     self.params.unit_mm)
+                                     self.params.unit_mm) if usable(self.objects[k]) else None
+        if tables[k] is None:
+            return self._exitance(transport, points, normals)
         out = tables[k](faces, points, normals)
         if self.stop is not None and self.stop():  # the table may hold zeros where it was not asked: not kept
             tables.pop(k)
