@@ -7,8 +7,8 @@ kernels that see the receiver's plane").
 SCENE.xml is a `convsss scene` file (one translucent object), RENDER.exr a `convsss render SCENE.xml --aovs mask` of
 it and REFERENCE.exr its `convsss reference`. At the pixel centres that see the object, the script sums Eq. 1 exactly
 over the render's own irradiance samples (their positions, normals and flux) with the half-space dipole, and with
-two kernels that also see the receiver's tangent plane; the render times their ratio estimates the render with
-each kernel. It prints each one's mean over the object / the reference's and the mean per-pixel error.
+four kernels that also see the receiver's tangent plane; the render times each ratio of two sums estimates the
+render with that kernel. It prints each one's mean over the object / the reference's and the mean per-pixel error.
 
 The classic dipole (Jensen et al. 2001) puts a source of the sample's flux at depth ``z_r`` under the entry point
 ``x_i`` and a negative image ``z_v = z_r + 2 z_b`` above it, both about the entry point's plane, and reads the flux
