@@ -7,7 +7,7 @@ kernels that see the receiver's plane").
 SCENE.xml is a `convsss scene` file (one translucent object), RENDER.exr a `convsss render SCENE.xml --aovs mask` of
 it and REFERENCE.exr its `convsss reference`. At the pixel centres that see the object, the script sums Eq. 1 exactly
 over the render's own irradiance samples (their positions, normals and flux) with the half-space dipole, and with
-four kernels that also see the receiver's tangent plane; the render times each ratio of two sums estimates the
+six kernels that also see the receiver's tangent plane; the render times each ratio of two sums estimates the
 render with that kernel. It prints each one's mean over the object / the reference's and the mean per-pixel error.
 
 The classic dipole (Jensen et al. 2001) puts a source of the sample's flux at depth ``z_r`` under the entry point
@@ -37,7 +37,11 @@ where the two normals agree and Eq. T3 where they are opposite:
 Two more planes through the receiver for Eq. T3, which keep the plane case exact: the mid plane, normal
 ``n_o + n_i`` (it holds both points of a sphere), where the normals agree, and the exit plane where they are
 opposite (Eq. T5); and a plane leaning from the mid plane to the exit plane as the normals turn apart, normal
-``n_o + max(0, n_o . n_i) n_i``, continuous in the normals (Eq. T6).
+``n_o + max(0, n_o . n_i) n_i``, continuous in the normals (Eq. T6). Last, two blends of Eq. T1 and T3 by the
+angle of the chord to the receiver's plane, which is small between near points of a convex surface and near 90°
+across the object (Eq. T7, T8):
+
+    K = (1 - gamma) R_d + gamma K_tp,   gamma = clamp(n_o . (x_o - x_i) / |x_o - x_i|, 0, 1)   (T7),  gamma^2  (T8).
 
 Optical parameters: the object's material at the boundary's eta (1 for a null boundary), the dipole's own (its
 total, not the exact one: the ratio of two sums does not see a per-channel scale). The sums are O(points x samples):
@@ -89,8 +93,8 @@ def _plane_kernel(plane, d, r2, n_i, z_r, z_b, sigma):
 
 @numba.njit(parallel=True, fastmath=True)
 def kernel_sums(points, normals, positions, sample_normals, flux, z_r, z_b, sigma):
-    """Per point (K, 3): Eq. 1 with Eq. T1, T3, T4, T5 and T6 (rows 0 to 4), without the common alpha'/(4 pi)."""
-    out = np.zeros((5, points.shape[0], 3))
+    """Per point (K, 3): Eq. 1 with Eq. T1, T3 to T8 (rows 0 to 6), without the common alpha'/(4 pi)."""
+    out = np.zeros((7, points.shape[0], 3))
     for k in numba.prange(points.shape[0]):
         n_o = (normals[k, 0], normals[k, 1], normals[k, 2])
         for i in range(positions.shape[0]):
@@ -102,6 +106,8 @@ def kernel_sums(points, normals, positions, sample_normals, flux, z_r, z_b, sigm
             middle = (n_o[0] + n_i[0], n_o[1] + n_i[1], n_o[2] + n_i[2])
             lean = max(cos, 0.0)
             leaning = (n_o[0] + lean * n_i[0], n_o[1] + lean * n_i[1], n_o[2] + lean * n_i[2])
+            chord = n_o[0] * d[0] + n_o[1] * d[1] + n_o[2] * d[2]
+            gamma = min(max(chord / max(math.sqrt(r2), 1e-12), 0.0), 1.0)
             for c in range(3):
                 zr, zb, s = z_r[c], z_b[c], sigma[c]
                 zv = zr + 2.0 * zb
@@ -113,6 +119,8 @@ def kernel_sums(points, normals, positions, sample_normals, flux, z_r, z_b, sigm
                 mid = _plane_kernel(middle, d, r2, n_i, zr, zb, s) if cos >= 0.0 else exit_plane
                 out[3, k, c] += mid * flux[i, c]  # Eq. T5
                 out[4, k, c] += _plane_kernel(leaning, d, r2, n_i, zr, zb, s) * flux[i, c]  # Eq. T6
+                out[5, k, c] += ((1.0 - gamma) * classic + gamma * exit_plane) * flux[i, c]  # Eq. T7
+                out[6, k, c] += ((1.0 - gamma * gamma) * classic + gamma * gamma * exit_plane) * flux[i, c]  # Eq. T8
     return out
 
 
@@ -125,7 +133,7 @@ def limits():
     points = np.c_[rng.uniform(-3, 3, (5, 2)), np.zeros(5)]
     sums = kernel_sums(points, np.tile(up, (5, 1)), positions, np.tile(up, (2000, 1)), rng.uniform(0, 1, (2000, 3)),
                        z_r, z_b, sigma)
-    print("plane, largest |T/T1 - 1| of T3..T6:", " ".join(f"{np.abs(s / sums[0] - 1).max():.1e}" for s in sums[1:]))
+    print("plane, largest |T/T1 - 1| of T3..T8:", " ".join(f"{np.abs(s / sums[0] - 1).max():.1e}" for s in sums[1:]))
     thickness, h = 8.0, 0.05
     x, y = np.meshgrid(np.arange(-40, 40, h), np.arange(-40, 40, h))
     positions = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
@@ -172,7 +180,8 @@ def main(scene_file, render_file, reference_file, figure=None):
     reference, _ = _read(mi, reference_file)
     mask = np.array(channels["mask"]).reshape(height, width, -1)[..., 0] > 0
     ratios = {}
-    for name, row in (("exit plane (T3)", 1), ("blend (T4)", 2), ("mid plane (T5)", 3), ("leaning (T6)", 4)):
+    for name, row in (("exit plane (T3)", 1), ("blend (T4)", 2), ("mid plane (T5)", 3), ("leaning (T6)", 4),
+                      ("chord (T7)", 5), ("chord squared (T8)", 6)):
         ratio = np.ones((height * width, 3))
         ratio[seen] = sums[row] / np.maximum(sums[0], 1e-300)
         ratios[name] = ratio.reshape(height, width, 3)
