@@ -57,6 +57,8 @@ import numba
 import numpy as np
 
 import convsss
+from convsss.compare import mask_layer, metrics
+from convsss.image import luminance, read_image, read_layers
 from convsss.profiles.models import model_profile
 
 
@@ -144,11 +146,6 @@ def limits():
           " T1", np.round(sums[0] / series, 3))
 
 
-def _read(mi, path):
-    channels = dict(mi.Bitmap(path).split())
-    return np.array(channels["<root>"])[..., :3], channels
-
-
 def main(scene_file, render_file, reference_file, figure=None):
     mi = convsss.register()
     scene = mi.load_file(scene_file)
@@ -176,9 +173,8 @@ def main(scene_file, render_file, reference_file, figure=None):
     sums = kernel_sums(points, normals, samples.position, samples.normal, samples.flux, z_r, z_b, sigma)
     print(f"{len(samples)} samples, {len(points)} points: {time.perf_counter() - start:.0f} s")
 
-    render, channels = _read(mi, render_file)
-    reference, _ = _read(mi, reference_file)
-    mask = np.array(channels["mask"]).reshape(height, width, -1)[..., 0] > 0
+    render, reference = read_image(render_file), read_image(reference_file)
+    mask = mask_layer(read_layers(render_file))[1]
     ratios = {}
     for name, row in (("exit plane (T3)", 1), ("blend (T4)", 2), ("mid plane (T5)", 3), ("leaning (T6)", 4),
                       ("chord (T7)", 5), ("chord squared (T8)", 6)):
@@ -187,10 +183,8 @@ def main(scene_file, render_file, reference_file, figure=None):
         ratios[name] = ratio.reshape(height, width, 3)
 
     def summary(image):
-        mean = image[mask].sum(0) / reference[mask].sum(0)
-        floor = 0.01 * reference[mask].mean(0)
-        error = (np.abs(image[mask] - reference[mask]) / np.maximum(reference[mask], floor)).mean(0)
-        return " ".join(f"{v:.3f}" for v in mean), " ".join(f"{100 * v:.1f}" for v in error)
+        m = metrics(reference, image, mask)  # convsss compare's mean ratio and mean per-pixel error
+        return " ".join(f"{v:.3f}" for v in m["mean_ratio"]), " ".join(f"{100 * v:.1f}" for v in m["mean_rel_error"])
 
     print(f"{'kernel':22s} mean / reference (R G B)   mean per-pixel error, % (R G B)")
     for name, image in [("half-space dipole (T1)", render)] + [(n, render * r) for n, r in ratios.items()]:
@@ -210,9 +204,8 @@ def _figure(render, reference, ratios, mask, path):
     rows, cols = np.nonzero(mask)
     crop = np.s_[max(rows.min() - 2, 0):rows.max() + 3, max(cols.min() - 2, 0):cols.max() + 3]
     fig, axes = plt.subplots(1, len(images), figsize=(3.2 * len(images) + 1, 3.4), squeeze=False)
-    weights = [0.2126, 0.7152, 0.0722]
     for ax, (name, image) in zip(axes[0], images):
-        ratio = np.where(mask, (image @ weights) / np.maximum(reference @ weights, 1e-9), np.nan)
+        ratio = np.where(mask, luminance(image) / np.maximum(luminance(reference), 1e-9), np.nan)
         shown = ax.imshow(ratio[crop], vmin=0.5, vmax=1.5, cmap="coolwarm")
         ax.set_title(name, fontsize=10)
         ax.axis("off")
