@@ -70,10 +70,11 @@ def test_render_a_scene_made_for_volpathmis(scene_file, tmp_path):
 def test_hand_written_volpath_scene_renders_as_it_is(tmp_path):
     """A scene written for volpathmis by hand (defaults, <lookat>, a referenced medium, an rgba film)."""
     scene = Path(__file__).parents[1] / "data" / "marble_cube_volpath.xml"
-    out = tmp_path / "cube"
+    out = tmp_path / "cube-0.5"  # a dot in the stem is kept: cube-0.5.exr, not cube-0.exr
     result = run("render", scene, "-o", out, "--no-progress", "--irradiance-samples", 4)
     assert result.exit_code == 0, result.output
-    image = read_image(out.with_suffix(".exr"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cube-0.5.exr", "cube-0.5.png"]
+    image = read_image(tmp_path / "cube-0.5.exr")
     assert image.shape == (48, 48, 3) and np.all(np.isfinite(image)) and image.max() > 0
 
 

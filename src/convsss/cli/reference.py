@@ -13,7 +13,7 @@ from .options import (
     PROGRESS,
     exposure_anchor,
     load_source,
-    output_stem,
+    output_paths,
     scene_source_options,
     source_inputs,
     tonemap_options,
@@ -56,8 +56,7 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
     if spp is not None and spp < 1:
         raise ConvsssError(f"--spp {spp} is not allowed: it must be >= 1")
     start = time.perf_counter()
-    stem = output_stem(output)
-    exr, png, info = (stem.with_suffix(suffix) for suffix in (".exr", ".png", ".json"))
+    exr, png, info = output_paths(output, ".exr", ".png", ".json")
     check_outputs([exr, png, info], [*source_inputs(scene_file, mesh), *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,

@@ -22,7 +22,7 @@ from .options import (
     exposure_anchor,
     integrator_options,
     load_source,
-    output_stem,
+    output_paths,
     render_params,
     scene_source_options,
     source_inputs,
@@ -103,9 +103,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
     profiles = profile_files(integrator["profile"] or "")
     for csv in profiles:
         TabulatedProfile.from_csv(csv)
-    stem = output_stem(output)
-    exr, png = stem.with_suffix(".exr"), stem.with_suffix(".png")
-    mask_png = stem.with_name(stem.name + "-mask.png") if write_mask else None
+    exr, png, mask_png = output_paths(output, ".exr", ".png", "-mask.png")
     check_outputs([exr, png, *([mask_png] if write_mask else []), *([stats_path] if stats_path else [])],
                   [*source_inputs(scene_file, mesh), *profiles, *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
@@ -145,7 +143,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
                            "color_model": color_model, "size_mm": size_mm, "floor": floor,
                            "boundary": boundary} if quick else None,
                  "seed": seed, "spp": spp_used,
-                 "outputs": {"exr": str(exr), "png": str(png), "mask": None if mask_png is None else str(mask_png)},
+                 "outputs": {"exr": str(exr), "png": str(png), "mask": str(mask_png) if write_mask else None},
                  "aovs": aovs,
                  "tonemap": {"method": tonemap, "key": key, "exposure": exposure, "exposure_from": exposure_from},
                  **integ.stats, "seconds": seconds}
