@@ -91,3 +91,17 @@ def test_reciprocal_exit_matches_the_half_space_radiance_on_a_sphere(albedo):
                        for lo, hi in bands] for model in (reciprocal, lambertian)])
     np.testing.assert_allclose(ratio[0], 1.0, atol=0.02)
     assert ratio[1][0] < 0.9
+
+
+@pytest.mark.parametrize("albedo", [0.05, 0.7, 0.999])
+def test_single_scattering_is_the_first_order_of_eq_o2(albedo):
+    """Index-matched, the once-scattered flux (Eq. S1) is ``(alpha'/2) (1 - mu0 ln(1 + 1/mu0))``; under a dielectric
+    less of it leaves (total internal reflection), and the rest is left to the multiple scattering."""
+    mu0 = np.array([0.1, 0.5, 1.0])
+    escaped = incidence.escaped
+    single = escaped(albedo, 1.0, mu0) - escaped(albedo, 1.0, mu0, "multiple")
+    np.testing.assert_allclose(single, 0.5 * albedo * (1.0 - mu0 * np.log(1.0 + 1.0 / mu0)), rtol=1e-6)
+    under_glass = escaped(albedo, 1.3, mu0) - escaped(albedo, 1.3, mu0, "multiple")
+    assert np.all(under_glass < single) and np.all(escaped(albedo, 1.3, mu0, "multiple") > 0)
+    with pytest.raises(ConvsssError, match="orders='first' is not allowed"):
+        escaped(albedo, 1.0, mu0, "first")

@@ -29,6 +29,8 @@ def test_from_mapping_takes_only_known_names():
     ({"max_depth": 0}, "max_depth=0"),
     ({"irradiance_samples": 0}, "irradiance_samples=0"),
     ({"profile": "/nonexistent/profile.csv"}, "profile file"),
+    ({"single_scattering": "exact"}, "single_scattering='exact'"),
+    ({"single_scattering": "traced", "profile_total": "model"}, "single_scattering=traced needs profile_total=exact"),
 ])
 def test_bad_values_say_what_is_allowed(kwargs, message):
     with pytest.raises(ConvsssError, match=message):

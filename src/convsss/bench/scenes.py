@@ -97,7 +97,8 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0, profile=""):
     params = RenderParams(transport="exact", sample_density=sample_density, profile=profile)
     sensor = scene.sensors()[0]
     frame = sensor_frame(sensor, params.unit_mm)
-    obj = find_translucent_objects(mi, scene, params.unit_mm, params.profile, params.profile_total)[0]
+    obj = find_translucent_objects(mi, scene, params.unit_mm, params.profile, params.profile_total,
+                                   params.orders)[0]
     depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
     cell = pixel_footprint(sensor, frame, depth, params.unit_mm)
     samples = object_samples(scene, obj, sample_count(obj.area_mm2, cell, sample_density), params.irradiance_samples,

@@ -145,7 +145,8 @@ class EditSession:
         """The edited object's profile."""
         if self.model == TABULATED:
             return self._tabulated
-        return model_profile(self.model, self.material, self.integrator.params.profile_total)
+        return model_profile(self.model, self.material, self.integrator.params.profile_total,
+                             self.integrator.params.orders)
 
     def state(self):
         """JSON-ready: the object, its material, model, the transport's accuracy, the choices and the last timings."""

@@ -36,6 +36,15 @@ is ``f(mu_0, mu) ∝ F_t(mu_0) g(mu_0) F_t(mu) g(mu)``, so paper Eq. 7 becomes
 O2's ``1/(mu + mu_0)``), where the Lambertian Eq. 7 is up to 30 % too dark on a sphere; Eq. O4 is within 1 % of Eq. O2
 there, for any albedo (docs/benchmarks.md, "Oblique incidence").
 
+**Single scattering on its own** (the renderer's ``single_scattering = traced``: the shader traces it through the
+object's real shape, :mod:`convsss.scene.shading`). Of Eq. O2's radiance, the light scattered once and leaving
+without an internal reflection is ``alpha'/(4 pi) / (mu + mu_0)`` (``H = 1``); its flux is
+
+    rho_1(mu_0) = 2 pi ∫ (1 - F_r(1/eta, mu)) alpha'/(4 pi) mu / (mu + mu_0) dmu,                         (Eq. S1)
+
+``(alpha'/2) (1 - mu_0 ln(1 + 1/mu_0))`` when index-matched; ``orders = "multiple"`` gives ``rho - rho_1``, what the
+profile then carries, with its gains (Eq. O1, O4) taken from that part alone.
+
 Both are azimuth-independent for isotropic scattering, so a Gauss–Legendre rule in ``mu`` solves them to
 machine precision. ``rho(1) / T_d(eta)`` is the slab's total reflectance that ``convsss profile validate`` measures
 by Monte Carlo (:mod:`convsss.profiles.slab`, which also takes an oblique beam: the tests compare both).
@@ -52,6 +61,8 @@ from ..fresnel import check_eta, diffuse_transmittance, fresnel_reflectance
 NODES = 96
 #: Nodes of the gain tables (uniform in the cosine inside the medium, 0 to 1).
 GAIN_NODES = 65
+#: What of the escaping light counts: ``all`` of it, or the ``multiple`` scattering (all but Eq. S1).
+ORDERS = ("all", "multiple")
 
 
 def _rule(eta=1.0):
@@ -103,11 +114,13 @@ def _check_albedo(albedo):
     return min(albedo, 1.0 - 1e-7)  # alpha' = 1 as its limit (g is within 5e-4 of 1; the iteration needs absorption)
 
 
-def escaped(albedo, eta, mu):
+def escaped(albedo, eta, mu, orders="all"):
     """``rho(mu)`` of Eq. O3: the flux that leaves the half-space per unit flux transmitted into it at cosine ``mu``
     (inside the medium, to the inward normal; array-like in (0, 1]). Reduced albedo ``albedo``, relative index
-    ``eta`` of a smooth boundary (1: index-matched)."""
+    ``eta`` of a smooth boundary (1: index-matched); ``orders`` multiple: without the single scattering of Eq. S1."""
     albedo, eta = _check_albedo(albedo), check_eta(eta)
+    if orders not in ORDERS:
+        raise ConvsssError(f"orders={orders!r} is not allowed: choose from {', '.join(ORDERS)}")
     mu0 = np.clip(np.asarray(mu, dtype=np.float64), 1e-6, 1.0)
     if albedo == 0.0:
         return np.zeros(mu0.shape)
@@ -118,15 +131,17 @@ def escaped(albedo, eta, mu):
     back = fresnel_reflectance(1.0 / eta, nodes)
     kernel = 0.5 * albedo * h[:, None] * h * w * nodes / (nodes[:, None] + nodes) * back
     u = np.linalg.solve(np.eye(NODES) - kernel, first.reshape(-1, NODES).T).T.reshape(first.shape)
+    if orders == "multiple":
+        u = u - albedo / (4.0 * np.pi) / (nodes + mu0[..., None])  # less Eq. S1's once-scattered radiance
     return 2.0 * np.pi * np.sum(w * nodes * (1.0 - back) * u, axis=-1)  # Eq. O3
 
 
 @lru_cache(maxsize=512)
-def gain_table(albedo, eta):
+def gain_table(albedo, eta, orders="all"):
     """Eq. O1 at :data:`GAIN_NODES` cosines ``0, ..., 1`` inside the medium (1 where nothing scatters), read back
-    linearly by :func:`gain`."""
+    linearly by :func:`gain`; of the light of ``orders`` (:data:`ORDERS`)."""
     mu = np.linspace(0.0, 1.0, GAIN_NODES)
-    rho = escaped(albedo, eta, mu)
+    rho = escaped(albedo, eta, mu, orders)
     if rho[-1] <= 0.0:
         return np.ones(GAIN_NODES)
     return rho / rho[-1]
@@ -138,21 +153,22 @@ def transmitted_cosine(eta, cos_outside):
     return np.sqrt(np.maximum(1.0 - (1.0 - cos_outside**2) / check_eta(eta) ** 2, 0.0))
 
 
-def gain(albedo, eta, cos_outside):
+def gain(albedo, eta, cos_outside, orders="all"):
     """Per channel, Eq. O1 for light arriving from outside at ``cos_outside``: (..., 3) for ``albedo`` of shape (3,)."""
     mu = transmitted_cosine(eta, cos_outside)
     nodes = np.linspace(0.0, 1.0, GAIN_NODES)
-    return np.stack([np.interp(mu, nodes, gain_table(float(a), float(eta))) for a in np.asarray(albedo)], axis=-1)
+    return np.stack([np.interp(mu, nodes, gain_table(float(a), float(eta), orders)) for a in np.asarray(albedo)],
+                    axis=-1)
 
 
 #: Outside cosines of the trapezoid rule of :func:`exit_normalization`.
 EXIT_NODES = 4097
 
 
-def exit_normalization(albedo, eta):
+def exit_normalization(albedo, eta, orders="all"):
     """``k`` of Eq. O4 per channel, (3,) for ``albedo`` of shape (3,): ``(2 / T_d) ∫ F_t(eta, mu) g mu dmu`` over
     the outside cosine ``mu`` (the gain read as :func:`gain` reads it), so that ``F_t g / (pi k)`` sends out ``T_d``
     of ``M`` as paper Eq. 7 does."""
     mu = np.linspace(0.0, 1.0, EXIT_NODES)
-    weight = (1.0 - fresnel_reflectance(check_eta(eta), mu))[:, None] * gain(albedo, eta, mu) * mu[:, None]
+    weight = (1.0 - fresnel_reflectance(check_eta(eta), mu))[:, None] * gain(albedo, eta, mu, orders) * mu[:, None]
     return 2.0 * np.trapezoid(weight, mu, axis=0) / diffuse_transmittance(eta)

@@ -64,23 +64,25 @@ def is_model(spec):
     return spec in PROFILE_MODELS
 
 
-def exact_total(albedo, eta):
+def exact_total(albedo, eta, orders="all"):
     """The total reflectance of a half-space of reduced albedo ``albedo`` (any shape, e.g. (3,) per channel) under a
     boundary of index ``eta``, in the normalization of Eq. 1: ``rho(1) / T_d(eta)``, ``rho`` the exact escaped flux
-    of Eq. O3 (:mod:`.incidence`; the Monte Carlo slab agrees within its noise)."""
+    of Eq. O3 (:mod:`.incidence`; the Monte Carlo slab agrees within its noise); ``orders`` multiple: without single
+    scattering (Eq. S1)."""
     albedo = np.asarray(albedo, dtype=np.float64)
-    rho = np.array([float(escaped(a, eta, 1.0)) for a in albedo.ravel()]).reshape(albedo.shape)
+    rho = np.array([float(escaped(a, eta, 1.0, orders)) for a in albedo.ravel()]).reshape(albedo.shape)
     return rho / diffuse_transmittance(eta)
 
 
-def model_profile(model, material, total="model"):
+def model_profile(model, material, total="model", orders="all"):
     """The profile of ``material`` (a :class:`~convsss.materials.Material`) by the model called ``model``; with
-    ``total`` exact, scaled per channel to :func:`exact_total` (a :class:`~convsss.profiles.ScaledProfile`)."""
+    ``total`` exact, scaled per channel to :func:`exact_total` of ``orders`` (a
+    :class:`~convsss.profiles.ScaledProfile`)."""
     profile = PROFILE_MODELS[check_model(model)](material.sigma_s_prime, material.sigma_a, material.eta)
     if check_total(total) == "model":
         return profile
     own = np.asarray(profile.total_reflectance, dtype=np.float64)
-    exact = exact_total(material.albedo_prime, material.eta)
+    exact = exact_total(material.albedo_prime, material.eta, orders)
     return ScaledProfile(profile, np.divide(exact, own, out=np.ones(3), where=own > 0))
 
 
@@ -146,11 +148,11 @@ def profile_files(text):
     return [Path(s) for s in [default, *per_object.values()] if not is_model(s)]
 
 
-def resolve_profile(spec, material, total):
+def resolve_profile(spec, material, total, orders="all"):
     """The :class:`~convsss.profiles.Profile` for ``spec`` (a model name or a CSV path) and ``material``; a model's
-    total per ``total`` (:data:`PROFILE_TOTALS`), a tabulated profile's as given."""
+    total per ``total`` (:data:`PROFILE_TOTALS`) and ``orders``, a tabulated profile's as given."""
     if is_model(spec):
-        return model_profile(spec, material, total)
+        return model_profile(spec, material, total, orders)
     return TabulatedProfile.from_csv(spec)
 
 

@@ -165,7 +165,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             return timer(name)
 
         with stage("samples"):
-            objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total)
+            objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders)
             check_camera(sensor)
             frame = sensor_frame(sensor, p.unit_mm)
             seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
@@ -203,7 +203,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                          "lower sample_density, or use downsample 0.5 or 0.25")
             self._check_irradiance_time(scene, count, obj.name)
             direct.append(object_samples(scene, obj, count, p.irradiance_samples, p.unit_mm, _seed(seed), stream=k,
-                                         stage=stage, oblique=p.incidence == "oblique"))
+                                         stage=stage, oblique=p.incidence == "oblique", orders=p.orders))
             cells.append(cell_full)
             per_object.append({**obj.summary(), "samples": count, "cell_size_mm": cell, "pixel_footprint_mm": cell_full,
                                "view_depth_mm": depth, "samples_pixel_rule": count_pixel,
@@ -257,7 +257,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                 normal = mi.Vector3f(*np.ascontiguousarray(s.normal.T, dtype=np.float32))
                 indirect.append(indirect_irradiance(tracer.incident, position, normal, s.area / p.unit_mm**2, obj.eta,
                                                     p.indirect_samples, seed + 104729 * (k + 1),
-                                                    stop=self.should_stop, albedo=albedo))
+                                                    stop=self.should_stop, albedo=albedo, orders=p.orders))
                 deferred.append(tracer.deferred)
                 tracer.deferred = []
         return indirect, deferred, tracer

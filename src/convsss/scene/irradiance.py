@@ -218,12 +218,13 @@ def fresnel_transmittance(eta, cos_theta):
 class Entry:
     """What of the light arriving at ``cos`` outside enters a medium and counts as irradiance: ``F_t(eta, cos)``, and,
     with the medium's reduced ``albedo`` (3,), times the oblique-incidence gain ``g`` per channel (Eq. O1, its tables
-    read linearly in the cosine inside the medium)."""
+    read linearly in the cosine inside the medium), of the light of ``orders`` (Eq. S1: ``multiple`` where single
+    scattering is traced on its own)."""
 
-    def __init__(self, eta, albedo=None):
+    def __init__(self, eta, albedo=None, orders="all"):
         self.eta = float(eta)
         self.gains = None if albedo is None else mi.Float(np.concatenate(
-            [gain_table(float(a), self.eta) for a in np.asarray(albedo, dtype=np.float64)]).astype(np.float32))
+            [gain_table(float(a), self.eta, orders) for a in np.asarray(albedo, dtype=np.float64)]).astype(np.float32))
 
     def __call__(self, cos):
         """``Color3f``: the entering weight per channel for Dr.Jit cosines ``cos`` on the outside."""
@@ -285,7 +286,7 @@ def _area_irradiance(scene, emitters, it, entry, rng):
     return total
 
 
-def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, albedo=None):
+def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, albedo=None, orders="all"):
     """``E_i`` (N, 3) numpy at the points ``position`` with outward ``normal`` (Dr.Jit arrays, scene units).
 
     Parameters
@@ -299,9 +300,11 @@ def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, a
     seed : int
     albedo : (3,) array_like, optional
         The medium's reduced albedo: each direction weighted by its oblique-incidence gain (:class:`Entry`).
+    orders : str
+        The light the gain is of (:class:`Entry`).
     """
     n = dr.width(position)
-    entry = Entry(eta, albedo)
+    entry = Entry(eta, albedo, orders)
     delta = [e for e in scene.emitters() if mi.has_flag(e.flags(), mi.EmitterFlags.Delta)]
     other = [e for e in scene.emitters() if not mi.has_flag(e.flags(), mi.EmitterFlags.Delta)]
     out = np.zeros((n, 3))
@@ -385,7 +388,7 @@ def _voxel_ranks(points, owners, spacing):
     return key, rank
 
 
-def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None, albedo=None):
+def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None, albedo=None, orders="all"):
     """``E_ind`` (N, 3) numpy: paper Eq. 2 over the light that reaches the points after at least one bounce.
 
     Cosine-weighted directions (pdf ``cos / pi``): a point with ``P`` paths gets
@@ -413,6 +416,8 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         Asked between chunks; when it returns True the rest is left out (Ctrl-C).
     albedo : (3,) array_like, optional
         The medium's reduced albedo: each path weighted by its oblique-incidence gain (:class:`Entry`).
+    orders : str
+        The light the gain is of (:class:`Entry`).
 
     Returns
     -------
@@ -420,7 +425,7 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         (N, 3) indirect irradiance, >= 0.
     """
     n = dr.width(position)
-    entry = Entry(eta, albedo)
+    entry = Entry(eta, albedo, orders)
     per_point = max(1, round(paths)) if paths >= 1 else 1
     if paths >= 1:
         owners = np.repeat(np.arange(n), per_point)
@@ -466,7 +471,8 @@ def sample_count(area_mm2, cell_mm, sample_density, profile_area_mm2=math.inf, p
     return max(64, math.ceil(max(by_pixel, by_profile)))
 
 
-def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=0, stage=None, oblique=False):
+def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=0, stage=None, oblique=False,
+                   orders="all"):
     """Scene -> samples, the data flow's first arrow: about ``count`` stratified points over the whole surface of the
     translucent object ``obj``, with their area, outward normal and irradiance (paper Eq. 2), in mm.
 
@@ -485,7 +491,7 @@ def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=
     stage : callable, optional
         ``stage(name)`` returns a context manager timing the stage ``samples``, then ``irradiance``.
     oblique : bool
-        Weight each direction by the medium's oblique-incidence gain (:class:`Entry`).
+        Weight each direction by the medium's oblique-incidence gain (:class:`Entry`) of the light of ``orders``.
 
     Returns
     -------
@@ -504,5 +510,5 @@ def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=
         normal_np = dr.ravel(normal).numpy().reshape(-1, 3).astype(np.float64)
     with stage("irradiance"):
         irradiance = surface_irradiance(scene, position, normal, obj.eta, irradiance_samples, seed + 7919 * stream,
-                                        albedo=obj.material.albedo_prime if oblique else None)
+                                        albedo=obj.material.albedo_prime if oblique else None, orders=orders)
         return IrradianceSamples(position_mm, area_mm2, irradiance, normal_np)

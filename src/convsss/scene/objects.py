@@ -339,14 +339,15 @@ def world_area(shape, to_world):
     return float(np.sum(area.numpy(), dtype=np.float64))
 
 
-def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_TOTAL):
+def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_TOTAL, orders="all"):
     """Every translucent shape of ``scene`` as a :class:`TranslucentObject`; a one-line error when there is none.
 
     ``profile`` is the renderer's ``profile`` parameter (:func:`~convsss.profiles.models.parse_profile_spec`): a
     model or CSV for every object, or per object by its name (the shape's id; ``instance/shape`` for an instance,
     whose instance id alone also selects it); ``total`` the renderer's ``profile_total`` (a model's total reflectance,
-    :func:`~convsss.profiles.models.model_profile`). Each instance of a shapegroup that holds a translucent shape gives
-    an object of its own. Raises :class:`~convsss.errors.ConvsssError` for a shape whose interior medium is not
+    :func:`~convsss.profiles.models.model_profile`) and ``orders`` what it carries
+    (:attr:`~convsss.scene.params.RenderParams.orders`). Each instance of a shapegroup that holds a translucent shape
+    gives an object of its own. Raises :class:`~convsss.errors.ConvsssError` for a shape whose interior medium is not
     homogeneous or has varying coefficients, a translucent shape with another BSDF, a boundary with ``eta < 1``, and
     a profile entry naming no translucent object, and a ``convsss_medium`` whose boundary or ``unit_mm`` disagrees
     with it (:func:`~convsss.scene.presets.check_boundary`); warns when a medium given by colour renders with
@@ -375,9 +376,9 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
         spec = per_object.get(name, per_object.get(name.split("/")[0], default_spec))
         check_color_model(named, spec, name, total)
         if spec not in PROFILE_MODELS and spec not in tables:
-            tables[spec] = resolve_profile(spec, mat, total)
+            tables[spec] = resolve_profile(spec, mat, total, orders)
         obj = TranslucentObject(shape=shape, name=name, material=mat, boundary=boundary,
-                                profile=tables.get(spec) or resolve_profile(spec, mat, total),
+                                profile=tables.get(spec) or resolve_profile(spec, mat, total, orders),
                                 shape_index=index, instance_index=0 if instance is None else shape_index(mi, instance),
                                 to_world=to_world, orientation=surfaces[index][0], closed=surfaces[index][1],
                                 bbox_mm=world_bbox(shape, to_world) * unit_mm,

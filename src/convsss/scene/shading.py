@@ -15,7 +15,22 @@ integrator's ``specular`` mode:
   emitter sampling (``alpha`` between the mirrored light direction and the viewer);
 - ``none``: nothing.
 
-Light that refracts into the object is already in ``M``, so a path ends there. Every **other** shape is shaded by
+With ``single_scattering`` traced, the vertex also adds the light scattered once inside the object, traced through
+its own shape (Jensen et al. 2001's single-scattering term; ``M`` then carries the rest, Eq. S1 of
+:mod:`convsss.profiles.incidence`):
+
+    L_1 = F_t(eta, w_o)/eta^2 ∫_0^{t_max} sigma_s' e^{-sigma_t' t} (1/(4 pi)) sum_lights E_in(x_t) dt,    (Eq. S2)
+    E_in = F_t(eta, mu_b) (mu_b / mu_b') L_e e^{-sigma_t' s mu_b / mu_b'},
+
+``x_t`` at distance ``t`` along the refracted view ray (``t_max`` where it leaves the object), ``L_e`` an emitter
+sample's ``L/pdf`` at ``x_t``, ``s`` the straight distance from ``x_t`` to the boundary towards the emitter, met at
+cosine ``mu_b`` (``mu_b'`` refracted inside: the path inside is ``s mu_b / mu_b'`` long, exact for a plane, and
+``mu_b / mu_b'`` the beam's compression); one distance sample, drawn from one channel's ``sigma_t'`` chosen at random,
+weighted by the channels' mean density (spectral MIS), and one emitter sample per emitter. On a half-space it is the
+once-scattered part of Eq. O2, ``alpha' E / (4 pi (mu + mu_0))`` when index-matched. Single scattering of light that
+arrives after a bounce is left out.
+
+Light that refracts into the object is otherwise in ``M``, so a path ends there. Every **other** shape is shaded by
 an ordinary unidirectional path tracer: emitter sampling and BSDF sampling combined by the power heuristic, Russian
 roulette from ``rr_depth``, so floors, shadows and backgrounds look as in Mitsuba's ``path``. A bounce that reaches
 a translucent object picks up its ``L_sss`` too.
@@ -66,9 +81,10 @@ class Leaving:
     channel (Eq. O4), what multiplies paper Eq. 7's ``(1/pi) F_t(eta, w_o)`` (the gain is
     :class:`~convsss.scene.irradiance.Entry`'s)."""
 
-    def __init__(self, eta, albedo):
-        self.entry = Entry(eta, albedo)
-        self.scale = mi.Color3f(*(1.0 / exit_normalization(np.asarray(albedo, dtype=np.float64), eta)).tolist())
+    def __init__(self, eta, albedo, orders="all"):
+        self.entry = Entry(eta, albedo, orders)
+        self.scale = mi.Color3f(*(1.0 / exit_normalization(np.asarray(albedo, dtype=np.float64), eta,
+                                                           orders)).tolist())
 
     def __call__(self, cos):
         """``Color3f`` for Dr.Jit cosines ``cos`` on the outside."""
@@ -98,8 +114,12 @@ class Shader:
         self.screen = screen
         self.stop = stop
         #: Each object's exit gain (:class:`Leaving`), ``None`` with ``incidence`` normal (paper Eq. 7 alone).
-        self.leaving = [Leaving(obj.eta, obj.material.albedo_prime) if params.incidence == "oblique" else None
-                        for obj in objects]
+        self.leaving = [Leaving(obj.eta, obj.material.albedo_prime, params.orders) if params.incidence == "oblique"
+                        else None for obj in objects]
+        #: Whether the paths trace single scattering (Eq. S2), and each object's sigma_t', sigma_s' per scene unit.
+        self.single = params.single_scattering == "traced"
+        self.coefficients = [(mi.Color3f(*(obj.material.sigma_t_prime * params.unit_mm).tolist()),
+                              mi.Color3f(*(obj.material.sigma_s_prime * params.unit_mm).tolist())) for obj in objects]
         self.ctx = mi.BSDFContext()
         self.ctx_reflect = mi.BSDFContext()
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
@@ -228,6 +248,49 @@ class Shader:
             result = dr.select(translucent, self._phong(si, ray_d, eta, ds, light), result)
         return dr.select(alive, result, 0.0)
 
+    def _single(self, si, which, eta, u_distance, u_emitter, active):
+        """Light scattered once inside the translucent object ``which`` towards the viewer at ``si``, by Eq. S2: one
+        distance sample along the refracted view ray, one emitter sample per emitter from there."""
+        n_lanes = dr.width(si.p)
+        sigma_t, sigma_s = dr.zeros(mi.Color3f, n_lanes), dr.zeros(mi.Color3f, n_lanes)
+        for k, (extinction, scattering) in enumerate(self.coefficients):
+            sigma_t = dr.select(which == k, extinction, sigma_t)
+            sigma_s = dr.select(which == k, scattering, sigma_s)
+        wo = si.to_world(si.wi)
+        n = mi.Vector3f(si.n)
+        n = dr.select(dr.dot(n, wo) < 0, -n, n)  # towards the viewer, outside
+        cos_o = dr.dot(n, wo)
+        cos_in = dr.safe_sqrt(1.0 - (1.0 - cos_o * cos_o) / (eta * eta))  # Snell's law
+        inward = dr.normalize(-wo / eta + (cos_o / eta - cos_in) * n)
+        # The distance: a channel at random, then its exponential; pdf the channels' mean (spectral MIS).
+        pick = u_distance * 3.0
+        channel = dr.minimum(mi.UInt32(pick), 2)
+        chosen = dr.select(channel == 0, sigma_t[0], dr.select(channel == 1, sigma_t[1], sigma_t[2]))
+        t = -dr.log(1.0 - (pick - mi.Float(channel))) / chosen
+        pdf = (sigma_t[0] * dr.exp(-sigma_t[0] * t) + sigma_t[1] * dr.exp(-sigma_t[1] * t)
+               + sigma_t[2] * dr.exp(-sigma_t[2] * t)) / 3.0
+        ray = si.spawn_ray(inward)
+        far = self.scene.ray_intersect(ray, active)
+        inside = active & (cos_o > 0) & far.is_valid() & (t < far.t)
+        it = dr.zeros(mi.Interaction3f, n_lanes)
+        it.p, it.time, it.wavelengths = ray(t), si.time, si.wavelengths
+        scattered = sigma_s * dr.exp(-sigma_t * t) / pdf * fresnel_transmittance(eta, cos_o) / (4.0 * dr.pi * eta * eta)
+        out = dr.zeros(mi.Color3f, n_lanes)
+        if self.per_emitter:
+            samples = [emitter.sample_direction(it, u_emitter, inside) for emitter in self.scene.emitters()]
+        else:
+            samples = [self.scene.sample_emitter_direction(it, u_emitter, False, inside)]
+        for ds, light in samples:
+            lit = inside & (ds.pdf > 0)
+            boundary = self.scene.ray_intersect(mi.Ray3f(it.p, ds.d), lit)
+            lit &= boundary.is_valid() & (boundary.t < ds.dist)
+            lit &= ~self.scene.ray_test(boundary.spawn_ray_to(ds.p), lit)
+            cos_b = dr.abs(dr.dot(boundary.n, ds.d))
+            cos_b_in = dr.maximum(dr.safe_sqrt(1.0 - (1.0 - cos_b * cos_b) / (eta * eta)), 1e-6)
+            entering = light * fresnel_transmittance(eta, cos_b) * cos_b / cos_b_in  # Eq. S2's E_in
+            out += dr.select(lit, entering * dr.exp(-sigma_t * boundary.t * cos_b / cos_b_in) * scattered, 0.0)
+        return out
+
     # --- the path loop ----------------------------------------------------------------------------------------------
     def shade(self, sampler, ray):
         """Radiance (mi.Color3f) and hit mask (mi.Bool) for a batch of camera rays, drawing from ``sampler``."""
@@ -341,6 +404,10 @@ class Shader:
             for ds, light in self._light_samples(si, u_light, alive):
                 direct_light += self._direct(si, bsdf, ray.d, eta, translucent, opaque, alive, ds, light)
             contribution += throughput * direct_light
+            if self.single:
+                u_distance = sampler.next_1d(translucent)
+                u_emitter = sampler.next_2d(translucent)
+                contribution += throughput * self._single(si, which, eta, u_distance, u_emitter, translucent)
 
             bs, bsdf_weight, continues = self._bounce(si, bsdf, u_lobe, u_dir, opaque, translucent)
             throughput = throughput * dr.select(continues, bsdf_weight, 0.0)
