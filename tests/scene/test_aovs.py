@@ -72,8 +72,8 @@ def test_exitance_is_what_the_sphere_pixels_are_made_of(mi, sphere_scene, monkey
 
     if not screen:
         monkeypatch.setattr(ScreenExitance, "_projection_agrees", lambda *args: False)
-    scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=2, integrator={"aovs": "exitance,mask",
-                                                                                   "incidence": "normal"}))
+    scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=2, integrator={
+        "aovs": "exitance,mask", "incidence": "normal", "single_scattering": "profile"}))
     assert scene.integrator().stats["screen_exitance"]["usable"] == screen
     aov = _layers(image, ["exitance.R", "exitance.G", "exitance.B", "mask.Y"])
     covered = aov["mask.Y"] == 1.0
@@ -91,7 +91,8 @@ def test_oblique_exit_weights_the_exitance_by_the_view_cosines_gain(mi, sphere_s
     from convsss.profiles.incidence import exit_normalization, gain
 
     names = ["exitance.R", "exitance.G", "exitance.B", "mask.Y", "normal.X", "normal.Y", "normal.Z"]
-    scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=2, integrator={"aovs": "exitance,mask,normal"}))
+    scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=2, integrator={
+        "aovs": "exitance,mask,normal", "single_scattering": "profile"}))  # the radiance is M's alone
     aov = _layers(image, names)
     exitance = np.stack([aov[f"exitance.{c}"] for c in "RGB"], axis=-1)
     normal = np.stack([aov[f"normal.{c}"] for c in "XYZ"], axis=-1)

@@ -57,7 +57,7 @@ def test_oblique_incidence_scales_both_by_the_cosine_weighted_gain(room):
     its lit half: with incidence = oblique both fluxes gain 2 ∫ mu g(mu) dmu per channel (Eq. O1, skin1's albedo)."""
     from convsss.profiles.incidence import gain
 
-    scene = room({"indirect_samples": 16, "max_depth": 3})
+    scene = room({"indirect_samples": 16, "max_depth": 3, "single_scattering": "profile"})  # g of all the light
     obj = scene.integrator().stats["objects"][0]
     x, w = np.polynomial.legendre.leggauss(64)
     mu, w = 0.5 * (x + 1.0), 0.5 * w

@@ -11,6 +11,13 @@ def test_defaults_are_the_papers_layers_and_the_multiscale_transport():
     assert p.integrator_dict()["type"] == "convsss"
 
 
+def test_single_scattering_is_traced_unless_a_models_own_total_holds_it():
+    assert RenderParams().single_scattering == "traced" and RenderParams().orders == "multiple"
+    implied = RenderParams(profile_total="model")
+    assert implied.single_scattering == "profile" and implied.orders == "all"
+    assert RenderParams(**implied.to_dict()).single_scattering == "profile"
+
+
 def test_from_mapping_takes_only_known_names():
     p = RenderParams.from_properties({"layers": 4, "downsample": 0.5, "unrelated": 1})
     assert p.layers == 4 and p.downsample == 0.5

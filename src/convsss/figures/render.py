@@ -21,9 +21,10 @@ from .scenes import load, scene_dict
 #: The paper's method as published (``correction="none"``); panels that go beyond it say so in their params.
 #: The paper's setting for every panel: Phong highlights, no plane correction, and surface samples by the image's
 #: cells alone (``profile_samples`` 0: the paper deposits irradiance per layer cell; the noise rule would draw
-#: millions of samples for its exact-sum references).
+#: millions of samples for its exact-sum references), every direction as a normal beam, the model's own total with
+#: single scattering in the profile.
 BASE_PARAMS = {"specular": "phong", "correction": "none", "profile_samples": 0, "incidence": "normal",
-               "profile_total": "model"}
+               "profile_total": "model", "single_scattering": "profile"}
 
 
 def panel_params(method, params):

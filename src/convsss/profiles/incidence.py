@@ -137,14 +137,17 @@ def escaped(albedo, eta, mu, orders="all"):
 
 
 @lru_cache(maxsize=512)
-def gain_table(albedo, eta, orders="all"):
+def gain_table(albedo, eta, orders="all", carried=None):
     """Eq. O1 at :data:`GAIN_NODES` cosines ``0, ..., 1`` inside the medium (1 where nothing scatters), read back
-    linearly by :func:`gain`; of the light of ``orders`` (:data:`ORDERS`)."""
+    linearly by :func:`gain`: the flux of the light of ``orders`` (:data:`ORDERS`) over the normal beam's flux of the
+    light the profile carries, ``carried`` (default: ``orders``); ``orders`` all, ``carried`` multiple is light whose
+    single scattering the profile spreads as its own (``rho(mu) / (rho - rho_1)(1)``)."""
     mu = np.linspace(0.0, 1.0, GAIN_NODES)
     rho = escaped(albedo, eta, mu, orders)
-    if rho[-1] <= 0.0:
+    normal = float(escaped(albedo, eta, 1.0, carried or orders))
+    if normal <= 0.0:
         return np.ones(GAIN_NODES)
-    return rho / rho[-1]
+    return rho / normal
 
 
 def transmitted_cosine(eta, cos_outside):

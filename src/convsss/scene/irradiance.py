@@ -218,13 +218,15 @@ def fresnel_transmittance(eta, cos_theta):
 class Entry:
     """What of the light arriving at ``cos`` outside enters a medium and counts as irradiance: ``F_t(eta, cos)``, and,
     with the medium's reduced ``albedo`` (3,), times the oblique-incidence gain ``g`` per channel (Eq. O1, its tables
-    read linearly in the cosine inside the medium), of the light of ``orders`` (Eq. S1: ``multiple`` where single
-    scattering is traced on its own)."""
+    read linearly in the cosine inside the medium), of the light of ``orders`` relative to what the profile carries,
+    ``carried`` (:func:`~convsss.profiles.incidence.gain_table`; Eq. S1: ``multiple`` where single scattering is
+    traced on its own)."""
 
-    def __init__(self, eta, albedo=None, orders="all"):
+    def __init__(self, eta, albedo=None, orders="all", carried=None):
         self.eta = float(eta)
         self.gains = None if albedo is None else mi.Float(np.concatenate(
-            [gain_table(float(a), self.eta, orders) for a in np.asarray(albedo, dtype=np.float64)]).astype(np.float32))
+            [gain_table(float(a), self.eta, orders, carried) for a in np.asarray(albedo, dtype=np.float64)]
+        ).astype(np.float32))
 
     def __call__(self, cos):
         """``Color3f``: the entering weight per channel for Dr.Jit cosines ``cos`` on the outside."""
@@ -417,7 +419,8 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
     albedo : (3,) array_like, optional
         The medium's reduced albedo: each path weighted by its oblique-incidence gain (:class:`Entry`).
     orders : str
-        The light the gain is of (:class:`Entry`).
+        What the profile carries (:class:`Entry`); the light counts with all its orders whatever it is: the shader
+        traces the single scattering of direct light only, so that of indirect light stays in the profile.
 
     Returns
     -------
@@ -425,7 +428,7 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         (N, 3) indirect irradiance, >= 0.
     """
     n = dr.width(position)
-    entry = Entry(eta, albedo, orders)
+    entry = Entry(eta, albedo, "all", carried=orders)
     per_point = max(1, round(paths)) if paths >= 1 else 1
     if paths >= 1:
         owners = np.repeat(np.arange(n), per_point)

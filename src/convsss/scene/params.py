@@ -77,13 +77,14 @@ def render_parameters():
                   "transfer; up to 1.7x at low albedo, 1 % for whole milk), and by reciprocity the exitance leaving "
                   "towards each direction likewise; normal: every direction as the profile's normal beam, the "
                   "exitance leaving as Lambert's law (the paper's).", choices=("oblique", "normal")),
-        Parameter("single_scattering", str, "profile", "Light scattered once inside a translucent object: profile: "
-                  "in the diffusion profile, as a half-space sends it back (the paper's); traced: traced through the "
-                  "object's own shape at every visible point (one distance sample along the refracted view ray, "
-                  "light sampled from there, Jensen et al. 2001's single-scattering term), the profile then carrying "
-                  "the rest (needs profile_total exact; a CSV profile should hold multiple scattering only). Traced "
-                  "is right where little light scatters more than once or the object is a few mean free paths "
-                  "across (ketchup, skin); it leaves out single scattering of indirect light.",
+        Parameter("single_scattering", str, "traced", "Light scattered once inside a translucent object: traced: "
+                  "traced through the object's own shape at every path vertex on it (one distance along the "
+                  "refracted view ray, one light sample per emitter from there: Jensen et al. 2001's "
+                  "single-scattering term), the profile carrying the rest and the single scattering of indirect "
+                  "light (needs profile_total exact; a CSV profile should hold multiple scattering only); profile: "
+                  "all of it in the diffusion profile, as a half-space sends it back (the paper's, and what "
+                  "profile_total model implies when this is not given). Traced is what makes low-albedo media "
+                  "(ketchup, skin) and objects a few mean free paths across right.",
                   choices=("profile", "traced")),
         Parameter("profile_total", str, DEFAULT_TOTAL, "Each profile model's total reflectance: exact: scaled per "
                   "channel to that of a half-space of the medium by exact radiative transfer (the Monte Carlo slab's "
@@ -172,9 +173,11 @@ class RenderParams:
                                           "the convsss integrator")
         if self._renderer["max_depth"] == 0:
             raise ConvsssError("max_depth=0 is not allowed: it must be -1 (unbounded) or >= 1")
-        if self._renderer["single_scattering"] == "traced" and self._renderer["profile_total"] == "model":
-            raise ConvsssError("single_scattering=traced needs profile_total=exact: a model's own total holds single "
-                               "scattering, which would then count twice")
+        if self._renderer["profile_total"] == "model":
+            if values.get("single_scattering") == "traced":
+                raise ConvsssError("single_scattering=traced needs profile_total=exact: a model's own total holds "
+                                   "single scattering, which would then count twice")
+            self._renderer["single_scattering"] = "profile"
         parse_profile_spec(self._renderer["profile"])
         parse_aovs(self._renderer["aovs"])
         own = {p.name: p for p in self.transport_class().parameters if p.exposed}
