@@ -26,9 +26,10 @@ its own shape (Jensen et al. 2001's single-scattering term; ``M`` then carries t
 sample's ``L/pdf`` at ``x_t``, ``s`` the straight distance from ``x_t`` to the boundary towards the emitter, met at
 cosine ``mu_b`` (``mu_b'`` refracted inside: the path inside is ``s mu_b / mu_b'`` long, exact for a plane, and
 ``mu_b / mu_b'`` the beam's compression); one distance sample, drawn from one channel's ``sigma_t'`` chosen at random,
-weighted by the channels' mean density (spectral MIS), and one emitter sample per emitter. On a half-space it is the
-once-scattered part of Eq. O2, ``alpha' E / (4 pi (mu + mu_0))`` when index-matched. Single scattering of light that
-arrives after a bounce is left out.
+weighted by the channels' mean density (spectral MIS), and one emitter sample per emitter; a ``t`` past ``t_max``
+is found by the ray towards the emitter, which then does not first leave the object (closed, oriented surfaces). On
+a half-space it is the once-scattered part of Eq. O2, ``alpha' E / (4 pi (mu + mu_0))`` when index-matched. The
+single scattering of light that arrives after a bounce stays in the profile (:class:`.irradiance.Entry`).
 
 Light that refracts into the object is otherwise in ``M``, so a path ends there. Every **other** shape is shaded by
 an ordinary unidirectional path tracer: emitter sampling and BSDF sampling combined by the power heuristic, Russian
@@ -253,9 +254,11 @@ class Shader:
         distance sample along the refracted view ray, one emitter sample per emitter from there."""
         n_lanes = dr.width(si.p)
         sigma_t, sigma_s = dr.zeros(mi.Color3f, n_lanes), dr.zeros(mi.Color3f, n_lanes)
+        orientation = dr.zeros(mi.Float, n_lanes)
         for k, (extinction, scattering) in enumerate(self.coefficients):
             sigma_t = dr.select(which == k, extinction, sigma_t)
             sigma_s = dr.select(which == k, scattering, sigma_s)
+            orientation = dr.select(which == k, self.objects[k].orientation, orientation)
         wo = si.to_world(si.wi)
         n = mi.Vector3f(si.n)
         n = dr.select(dr.dot(n, wo) < 0, -n, n)  # towards the viewer, outside
@@ -270,8 +273,7 @@ class Shader:
         pdf = (sigma_t[0] * dr.exp(-sigma_t[0] * t) + sigma_t[1] * dr.exp(-sigma_t[1] * t)
                + sigma_t[2] * dr.exp(-sigma_t[2] * t)) / 3.0
         ray = si.spawn_ray(inward)
-        far = self.scene.ray_intersect(ray, active)
-        inside = active & (cos_o > 0) & far.is_valid() & (t < far.t)
+        inside = active & (cos_o > 0)  # and x_t in the object: checked below, where the ray to the light leaves it
         it = dr.zeros(mi.Interaction3f, n_lanes)
         it.p, it.time, it.wavelengths = ray(t), si.time, si.wavelengths
         scattered = sigma_s * dr.exp(-sigma_t * t) / pdf * fresnel_transmittance(eta, cos_o) / (4.0 * dr.pi * eta * eta)
@@ -283,7 +285,9 @@ class Shader:
         for ds, light in samples:
             lit = inside & (ds.pdf > 0)
             boundary = self.scene.ray_intersect(mi.Ray3f(it.p, ds.d), lit)
-            lit &= boundary.is_valid() & (boundary.t < ds.dist)
+            # x_t is inside the object (closed, oriented) iff the ray towards the light first leaves it.
+            leaves = (self.classify(boundary)[0] == which) & (orientation * dr.dot(boundary.n, ds.d) > 0)
+            lit &= leaves & (boundary.t < ds.dist)
             lit &= ~self.scene.ray_test(boundary.spawn_ray_to(ds.p), lit)
             cos_b = dr.abs(dr.dot(boundary.n, ds.d))
             cos_b_in = dr.maximum(dr.safe_sqrt(1.0 - (1.0 - cos_b * cos_b) / (eta * eta)), 1e-6)
