@@ -144,7 +144,7 @@ def gain_table(albedo, eta, orders="all", carried=None):
     single scattering the profile spreads as its own (``rho(mu) / (rho - rho_1)(1)``)."""
     mu = np.linspace(0.0, 1.0, GAIN_NODES)
     rho = escaped(albedo, eta, mu, orders)
-    normal = float(escaped(albedo, eta, 1.0, carried or orders))
+    normal = rho[-1] if carried in (None, orders) else float(escaped(albedo, eta, 1.0, carried))
     if normal <= 0.0:
         return np.ones(GAIN_NODES)
     return rho / normal

@@ -215,6 +215,12 @@ def fresnel_transmittance(eta, cos_theta):
     return 1.0 - mi.fresnel(dr.abs(cos_theta), eta)[0]
 
 
+def refracted_cosine(eta, cos_theta):
+    """The cosine inside a medium of relative index ``eta`` of a direction refracted in from ``cos_theta`` outside
+    (Snell's law; Dr.Jit, as :func:`convsss.profiles.incidence.transmitted_cosine` for numpy)."""
+    return dr.safe_sqrt(1.0 - (1.0 - cos_theta * cos_theta) / (eta * eta))
+
+
 class Entry:
     """What of the light arriving at ``cos`` outside enters a medium and counts as irradiance: ``F_t(eta, cos)``, and,
     with the medium's reduced ``albedo`` (3,), times the oblique-incidence gain ``g`` per channel (Eq. O1, its tables
@@ -236,7 +242,7 @@ class Entry:
         """``Color3f``: the gain ``g`` per channel for Dr.Jit cosines ``cos`` on the outside (1 without an albedo)."""
         if self.gains is None:
             return dr.full(mi.Color3f, 1.0, dr.width(cos))
-        inside = dr.safe_sqrt(1.0 - (1.0 - cos * cos) / (self.eta * self.eta))  # Snell's law
+        inside = refracted_cosine(self.eta, cos)
         x = dr.clip(inside, 0.0, 1.0) * (GAIN_NODES - 1)
         node = mi.UInt32(dr.minimum(dr.floor(x), GAIN_NODES - 2))
         t = x - mi.Float(node)

@@ -55,7 +55,7 @@ import numpy as np
 
 from ..backend import load_mitsuba
 from ..profiles.incidence import exit_normalization
-from .irradiance import Entry, fresnel_transmittance
+from .irradiance import Entry, fresnel_transmittance, refracted_cosine
 from .mesh_exitance import MeshExitance, usable
 from .mis import power_heuristic
 from .objects import hit_indices
@@ -263,7 +263,7 @@ class Shader:
         n = mi.Vector3f(si.n)
         n = dr.select(dr.dot(n, wo) < 0, -n, n)  # towards the viewer, outside
         cos_o = dr.dot(n, wo)
-        cos_in = dr.safe_sqrt(1.0 - (1.0 - cos_o * cos_o) / (eta * eta))  # Snell's law
+        cos_in = refracted_cosine(eta, cos_o)
         inward = dr.normalize(-wo / eta + (cos_o / eta - cos_in) * n)
         # The distance: a channel at random, then its exponential; pdf the channels' mean (spectral MIS).
         pick = u_distance * 3.0
@@ -290,7 +290,7 @@ class Shader:
             lit &= leaves & (boundary.t < ds.dist)
             lit &= ~self.scene.ray_test(boundary.spawn_ray_to(ds.p), lit)
             cos_b = dr.abs(dr.dot(boundary.n, ds.d))
-            cos_b_in = dr.maximum(dr.safe_sqrt(1.0 - (1.0 - cos_b * cos_b) / (eta * eta)), 1e-6)
+            cos_b_in = dr.maximum(refracted_cosine(eta, cos_b), 1e-6)
             entering = light * fresnel_transmittance(eta, cos_b) * cos_b / cos_b_in  # Eq. S2's E_in
             out += dr.select(lit, entering * dr.exp(-sigma_t * boundary.t * cos_b / cos_b_in) * scattered, 0.0)
         return out
