@@ -131,7 +131,7 @@ def test_profile_validate_and_plot_write_their_files(tmp_path):
                                  "--model", "pbd", "-o", str(out), "--no-progress"])
     assert result.exit_code == 0, result.output
     assert (out / "validate.md").is_file() and (out / "validate.json").is_file() and (out / "marble.png").is_file()
-    assert "| Marble | R |" in result.output and "pbd" in result.output
+    assert "| Marble | R |" in result.output and "pbd" in result.output and "exact total" in result.output
     cached = sorted(p.name for p in (out / "cache").iterdir())
     assert len(cached) == 3  # one tally per channel, reused by the next run
     assert runner.invoke(cli, ["profile", "validate", "marble", "--photons", "4000", "-o", str(out),

@@ -2,7 +2,9 @@
 
 Per channel, the tally's radial histogram (the measured ``R(r)`` in the normalization of Eq. 1) and its total are
 compared with each model's bin averages (``energy_within`` at the bin edges over the annulus area, so a steep
-profile is compared like for like) and its ``total_reflectance``. Tallies are cached on disk by
+profile is compared like for like) and its ``total_reflectance``; the total is also compared with the exact
+half-space total (:func:`~convsss.profiles.models.exact_total`), which every model renders with under
+``profile_total exact`` (the default). Tallies are cached on disk by
 ``(albedo', eta, photons, seed)``: every preset with the same reduced albedo and index shares one.
 """
 
@@ -14,13 +16,16 @@ import numpy as np
 
 from ..files import json_ready, write_files
 from . import CHANNELS
-from .models import MODEL_TITLES, PROFILE_MODELS, model_profile
+from .models import MODEL_TITLES, PROFILE_MODELS, exact_total, model_profile
 from .slab import slab_tally
 
 #: Bump when a change makes cached tallies wrong.
 SLAB_FORMAT = 1
 #: Bins whose tally is noisier than this (relative standard error) are left out of the profile error.
 NOISE_LIMIT = 0.1
+#: The key and title of the exact half-space total in a result's ``models`` (a total, no profile).
+EXACT = "exact total"
+EXACT_TITLE = "Exact half-space total (every model's total under profile_total exact, the default)"
 
 
 def _key(albedo, eta, photons, seed):
@@ -60,7 +65,7 @@ def validate_material(material, models=tuple(PROFILE_MODELS), photons=1 << 19, s
         ``stderr`` (1/mm^2), and ``total`` (3,), ``total_stderr`` (3,); ``models``: per model ``total`` (3,),
         ``total_error`` (3,) relative to the slab, ``profile`` (per channel bin averages), ``profile_error`` (3,):
         the mean of ``|model/slab - 1|`` over the bins weighted by their share of the slab's energy (bins noisier than
-        :data:`NOISE_LIMIT` left out).
+        :data:`NOISE_LIMIT` left out); ``exact``: ``total`` and ``total_error`` of the exact half-space total.
     """
     tallies = [cached_tally(a, material.eta, photons, seed, cache) for a in material.albedo_prime]
     slab = {"r_mm": [], "edges_mm": [], "profile": [], "stderr": [], "energy": []}
@@ -76,6 +81,8 @@ def validate_material(material, models=tuple(PROFILE_MODELS), photons=1 << 19, s
     slab["total_stderr"] = np.array([t["total_stderr"] for t in tallies])
     out = {"name": material.name, "albedo_prime": material.albedo_prime, "eta": material.eta, "photons": photons,
            "slab": slab, "models": {}}
+    exact = exact_total(material.albedo_prime, material.eta)
+    out["exact"] = {"total": exact, "total_error": _relative(exact, slab["total"])}
     for model in models:
         profile = model_profile(model, material)
         total = profile.total_reflectance
@@ -90,10 +97,14 @@ def validate_material(material, models=tuple(PROFILE_MODELS), photons=1 << 19, s
             weight = slab["energy"][c] * ok
             rel = np.where(ok, average / np.where(ok, measured, 1.0) - 1.0, 0.0)
             errors.append(float(np.sum(weight * np.abs(rel)) / max(np.sum(weight), 1e-300)))
-        ratio = np.divide(total, slab["total"], out=np.full(3, np.nan), where=slab["total"] > 0)  # 0/0: NaN
-        out["models"][model] = {"total": total, "total_error": ratio - 1.0, "profile": per_bin,
+        out["models"][model] = {"total": total, "total_error": _relative(total, slab["total"]), "profile": per_bin,
                                 "profile_error": np.array(errors)}
     return out
+
+
+def _relative(total, measured):
+    """``total / measured - 1`` per channel; NaN where nothing is measured (0/0: a channel that scatters nothing)."""
+    return np.divide(total, measured, out=np.full(3, np.nan), where=measured > 0) - 1.0
 
 
 def plot_validation(result, path):
@@ -111,7 +122,8 @@ def plot_validation(result, path):
         r, measured, noise = slab["r_mm"][c], slab["profile"][c], slab["stderr"][c]
         shown = measured > 0
         top.errorbar(r[shown], (r * measured)[shown], yerr=(r * noise)[shown], fmt=".", color="black", ms=3,
-                     label=f"slab, path traced ({slab['total'][c]:.4f})", zorder=3)
+                     label=f"slab, path traced ({slab['total'][c]:.4f}; exact half-space "
+                     f"{result['exact']['total'][c]:.4f})", zorder=3)
         for model, m in result["models"].items():
             line, = top.plot(r, r * m["profile"][c], label=f"{model} ({m['total'][c]:.4f}, "
                                                              f"{100 * m['total_error'][c]:+.1f} %)")
@@ -129,13 +141,16 @@ def plot_validation(result, path):
 
 
 def validation_table(results, models):
-    """A Markdown table: per material and channel, the slab's total reflectance and each model's relative error."""
-    head = "| material | ch | alpha' | slab total | " + " | ".join(f"{m} total err | {m} profile err" for m in models)
-    lines = [head + " |", "|" + "---|" * (4 + 2 * len(models))]
+    """A Markdown table: per material and channel, the slab's total reflectance, the relative error of the exact
+    half-space total and each model's."""
+    head = ("| material | ch | alpha' | slab total | exact total err | "
+            + " | ".join(f"{m} total err | {m} profile err" for m in models))
+    lines = [head + " |", "|" + "---|" * (5 + 2 * len(models))]
     for res in results:
         for c in range(3):
             row = [res["name"], CHANNELS[c], f"{res['albedo_prime'][c]:.4f}",
-                   f"{res['slab']['total'][c]:.4f} ± {res['slab']['total_stderr'][c]:.4f}"]
+                   f"{res['slab']['total'][c]:.4f} ± {res['slab']['total_stderr'][c]:.4f}",
+                   f"{100 * res['exact']['total_error'][c]:+.2f} %"]
             for m in models:
                 row += [f"{100 * res['models'][m]['total_error'][c]:+.1f} %",
                         f"{100 * res['models'][m]['profile_error'][c]:.1f} %"]
@@ -144,17 +159,19 @@ def validation_table(results, models):
 
 
 def summary(results, models, albedo_limit=0.5):
-    """Per model: the worst and mean |total error| over channels with ``alpha' > albedo_limit`` and over the rest."""
+    """Per model, and for the exact half-space total (:data:`EXACT`, no profile error): the worst and mean |total
+    error| over channels with ``alpha' > albedo_limit`` and over the rest."""
     out = {}
-    for m in models:
+    for m in [EXACT, *models]:
+        of = [r["exact"] if m == EXACT else r["models"][m] for r in results]
         # a channel that scatters nothing has no total to err on (0/0): left out
-        thick = [abs(r["models"][m]["total_error"][c]) for r in results for c in range(3)
-                 if r["albedo_prime"][c] > albedo_limit and np.isfinite(r["models"][m]["total_error"][c])]
-        thin = [abs(r["models"][m]["total_error"][c]) for r in results for c in range(3)
-                if r["albedo_prime"][c] <= albedo_limit and np.isfinite(r["models"][m]["total_error"][c])]
-        prof = [r["models"][m]["profile_error"][c] for r in results for c in range(3)
-                if r["albedo_prime"][c] > albedo_limit]
-        out[m] = {"title": MODEL_TITLES[m],
+        thick = [abs(o["total_error"][c]) for r, o in zip(results, of) for c in range(3)
+                 if r["albedo_prime"][c] > albedo_limit and np.isfinite(o["total_error"][c])]
+        thin = [abs(o["total_error"][c]) for r, o in zip(results, of) for c in range(3)
+                if r["albedo_prime"][c] <= albedo_limit and np.isfinite(o["total_error"][c])]
+        prof = [] if m == EXACT else [o["profile_error"][c] for r, o in zip(results, of) for c in range(3)
+                                      if r["albedo_prime"][c] > albedo_limit]
+        out[m] = {"title": EXACT_TITLE if m == EXACT else MODEL_TITLES[m],
                   "thick_channels": len(thick), "thick_max": max(thick, default=np.nan),
                   "thick_mean": float(np.mean(thick)) if thick else np.nan,
                   "thick_within_2pct": int(np.sum(np.array(thick) <= 0.02)),
