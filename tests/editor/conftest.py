@@ -14,19 +14,19 @@ mi, sphere_scene = _scene_fixtures.mi, _scene_fixtures.sphere_scene
 
 @pytest.fixture
 def session(mi, sphere_scene):
-    """``session(incidence=None, **scene_options)`` -> an EditSession of a 32x32, 1 spp sphere scene (``incidence``:
-    that render parameter instead of the default)."""
+    """``session(render=None, **scene_options)`` -> an EditSession of a 32x32, 1 spp sphere scene (``render``: render
+    parameters instead of the defaults)."""
     from convsss.editor import EditSession
     from convsss.scene.integrator import register, scene_parameters
     from convsss.scene.loading import load_scene
     from convsss.scene.params import RenderParams
 
-    def make(incidence=None, **options):
+    def make(render=None, **options):
         register()
         scene = load_scene(sphere_scene(**{"res": 32, "spp": 1, **options}))
         params = None
-        if incidence is not None:
-            params = RenderParams(**{**(scene_parameters(scene) or {}), "incidence": incidence})
+        if render is not None:
+            params = RenderParams(**{**(scene_parameters(scene) or {}), **render})
         return EditSession(scene, params=params)
 
     return make

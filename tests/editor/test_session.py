@@ -5,9 +5,13 @@ import pytest
 
 from convsss.errors import ConvsssError
 
+#: Render parameters under which the samples' irradiance does not depend on the albedo: no gain at all (normal
+#: incidence, and single scattering in the profile, so indirect light needs no share of it either).
+NO_GAIN = {"incidence": "normal", "single_scattering": "profile"}
+
 
 def test_new_coefficients_rebuild_the_transport_on_the_same_samples(session):
-    s = session(incidence="normal")
+    s = session(NO_GAIN)
     prepared = s.integrator.prepared
     samples, irradiance, transports = prepared.samples, prepared.irradiance, list(prepared.transports)
     before, version = s.image.copy(), s.version
@@ -28,7 +32,7 @@ def test_new_coefficients_rebuild_the_transport_on_the_same_samples(session):
 
 
 def test_model_accuracy_and_colour_rebuild_the_transport_only(session):
-    s = session(incidence="normal")
+    s = session(NO_GAIN)
     samples = s.integrator.prepared.samples
     assert s.update(model="better-dipole")["last"]["rebuilt"] == "transport"
     assert type(s.integrator.prepared.transports[0].profile.base).__name__ == "BetterDipoleProfile"
@@ -53,6 +57,13 @@ def test_a_new_albedo_prepares_again_with_oblique_incidence(session):
     state = s.update(sigma_a=[0.3, 0.3, 0.3])
     assert state["last"]["rebuilt"] == "prepare" and s.integrator.prepared.samples is not samples
     assert s.integrator.prepared.transports[0].profile.base.sigma_a.tolist() == pytest.approx([0.3, 0.3, 0.3])
+
+
+def test_a_new_albedo_prepares_again_where_indirect_light_counts_its_single_scattering(session):
+    """With single scattering traced (the default) the profile carries the multiple scattering alone, and indirect
+    light, whose single scattering is not traced, enters with the albedo's share of it, even at normal incidence."""
+    s = session({"incidence": "normal"})
+    assert s.update(sigma_a=[0.3, 0.3, 0.3])["last"]["rebuilt"] == "prepare"
 
 
 def test_retransport_refuses_a_new_albedo_with_oblique_incidence(session):
@@ -89,7 +100,7 @@ def test_bad_edits_change_nothing(session):
 
 
 def test_a_preset_and_the_profile_plot(session):
-    s = session(incidence="normal")
+    s = session(NO_GAIN)
     state = s.update(preset="marble")
     assert state["material"]["name"] == "Marble" and state["last"]["rebuilt"] == "transport"  # null boundary: eta 1
     assert s.profile_png()[:8] == b"\x89PNG\r\n\x1a\n" and s.image_png()[:4] == b"\x89PNG"

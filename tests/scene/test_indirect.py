@@ -41,7 +41,8 @@ def test_indirect_light_in_a_spherical_room_is_the_radiosity_series(room, max_de
     dA / (4 pi R^2), so after n bounces of a point light's flux 4 pi I the mean irradiance over a small object at the
     centre is rho^n I / R^2 (Eq. 2, null boundary); a path of max_depth segments brings max_depth - 2 bounces.
     Direct light: a point light at distance d irradiates a small sphere by I / (4 d^2) on average."""
-    scene = room({"indirect_samples": 16, "max_depth": max_depth, "incidence": "normal"})
+    scene = room({"indirect_samples": 16, "max_depth": max_depth, "incidence": "normal",
+                  "single_scattering": "profile"})
     obj = scene.integrator().stats["objects"][0]
     area = 4 * np.pi
     expected = 400 / 50**2 * sum(0.5**n for n in range(1, bounces + 1))
@@ -50,6 +51,22 @@ def test_indirect_light_in_a_spherical_room_is_the_radiosity_series(room, max_de
     np.testing.assert_allclose(np.array(obj["flux_indirect"]) / area, expected, rtol=0.02)
     np.testing.assert_allclose(np.array(obj["flux_direct"]) / area, 400 / (4 * 20**2), rtol=0.01)
     np.testing.assert_allclose(obj["flux"], np.add(obj["flux_direct"], obj["flux_indirect"]))
+
+
+def test_indirect_light_brings_its_single_scattering_to_a_profile_without_it(room):
+    """Single scattering traced (the default): the shader traces that of direct light, the profile carries the
+    multiple scattering alone, and indirect light enters with its single scattering as the profile's own share,
+    ``rho(1) / (rho - rho_1)(1)`` per channel at normal incidence (Eq. S1); direct light enters as it is."""
+    from convsss.profiles.incidence import escaped
+
+    scene = room({"indirect_samples": 16, "max_depth": 3, "incidence": "normal"})
+    obj = scene.integrator().stats["objects"][0]
+    albedo = convsss.material("skin1").albedo_prime
+    share = np.array([escaped(a, 1.0, 1.0) / escaped(a, 1.0, 1.0, "multiple") for a in albedo])
+    assert np.all(share > 1.1)
+    area = 4 * np.pi
+    np.testing.assert_allclose(np.array(obj["flux_indirect"]) / area, 400 / 50**2 * 0.5 * share, rtol=0.02)
+    np.testing.assert_allclose(np.array(obj["flux_direct"]) / area, 400 / (4 * 20**2), rtol=0.01)
 
 
 def test_oblique_incidence_scales_both_by_the_cosine_weighted_gain(room):

@@ -206,7 +206,7 @@ class EditSession:
                 check_model(model)
             material = self._material(changes, model)
             params = self._params(changes.get("accuracy"))
-            if not keeps_irradiance(self.material, material, params.incidence):
+            if not keeps_irradiance(self.material, material, params.incidence, params.orders):
                 rebuilt = "prepare"
             elif (model != self.model or params.to_dict() != self.integrator.params.to_dict()
                   or not (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)

@@ -252,12 +252,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         indirect, deferred = [], []
         with stage("indirect"):
             for k, (obj, s) in enumerate(zip(objects, samples)):
-                albedo = obj.material.albedo_prime if p.incidence == "oblique" else None
                 position = mi.Point3f(*np.ascontiguousarray((s.position / p.unit_mm).T, dtype=np.float32))
                 normal = mi.Vector3f(*np.ascontiguousarray(s.normal.T, dtype=np.float32))
                 indirect.append(indirect_irradiance(tracer.incident, position, normal, s.area / p.unit_mm**2, obj.eta,
                                                     p.indirect_samples, seed + 104729 * (k + 1),
-                                                    stop=self.should_stop, albedo=albedo, orders=p.orders))
+                                                    stop=self.should_stop, albedo=obj.material.albedo_prime,
+                                                    orders=p.orders, oblique=p.incidence == "oblique"))
                 deferred.append(tracer.deferred)
                 tracer.deferred = []
         return indirect, deferred, tracer
@@ -329,10 +329,10 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self._check_same_samples(params)
             self.params = params
         p = self.params
-        if not all(keeps_irradiance(old.material, new.material, p.incidence)
+        if not all(keeps_irradiance(old.material, new.material, p.incidence, p.orders)
                    for new, old in zip(objects, state.objects)):  # the same eta: only the albedo can differ
-            raise ConvsssError("retransport keeps the samples' irradiance, which weights each direction by the "
-                               "albedo's oblique-incidence gain (incidence = oblique): call prepare() for a new "
+            raise ConvsssError("retransport keeps the samples' irradiance, which weights the light by the albedo's "
+                               "gain (incidence = oblique, or single scattering traced): call prepare() for a new "
                                "reduced albedo")
         timer = StageTimer(sync=dr.sync_thread)
 

@@ -226,13 +226,18 @@ class Entry:
     with the medium's reduced ``albedo`` (3,), times the oblique-incidence gain ``g`` per channel (Eq. O1, its tables
     read linearly in the cosine inside the medium), of the light of ``orders`` relative to what the profile carries,
     ``carried`` (:func:`~convsss.profiles.incidence.gain_table`; Eq. S1: ``multiple`` where single scattering is
-    traced on its own)."""
+    traced on its own). Not ``oblique`` (the paper's normal incidence): every direction takes the gain of the normal
+    beam, which is 1 unless ``orders`` and ``carried`` differ (then the light's single scattering, spread by the
+    profile as its own: ``rho(1) / (rho - rho_1)(1)``)."""
 
-    def __init__(self, eta, albedo=None, orders="all", carried=None):
+    def __init__(self, eta, albedo=None, orders="all", carried=None, oblique=True):
         self.eta = float(eta)
-        self.gains = None if albedo is None else mi.Float(np.concatenate(
-            [gain_table(float(a), self.eta, orders, carried) for a in np.asarray(albedo, dtype=np.float64)]
-        ).astype(np.float32))
+        self.gains = None
+        if albedo is not None:
+            tables = [gain_table(float(a), self.eta, orders, carried) for a in np.asarray(albedo, dtype=np.float64)]
+            if not oblique:
+                tables = [np.full_like(t, t[-1]) for t in tables]
+            self.gains = mi.Float(np.concatenate(tables).astype(np.float32))
 
     def __call__(self, cos):
         """``Color3f``: the entering weight per channel for Dr.Jit cosines ``cos`` on the outside."""
@@ -250,11 +255,12 @@ class Entry:
                                     dr.gather(mi.Float, self.gains, node + c * GAIN_NODES + 1), t) for c in range(3)])
 
 
-def keeps_irradiance(old, new, incidence):
+def keeps_irradiance(old, new, incidence, orders="all"):
     """Whether samples lit for the material ``old`` keep their irradiance for ``new``: the same ``eta`` (``F_t``)
-    and, with ``incidence`` oblique, the same reduced albedo (its gain, :class:`Entry`) to rounding."""
-    return old.eta == new.eta and (incidence != "oblique" or np.allclose(old.albedo_prime, new.albedo_prime,
-                                                                          rtol=1e-9, atol=0.0))
+    and, where a gain depends on it (:class:`Entry`: ``incidence`` oblique, or a profile carrying ``orders``
+    multiple, whose indirect light counts its single scattering), the same reduced albedo to rounding."""
+    gained = incidence == "oblique" or orders != "all"
+    return old.eta == new.eta and (not gained or np.allclose(old.albedo_prime, new.albedo_prime, rtol=1e-9, atol=0.0))
 
 
 def _delta_irradiance(scene, emitters, it, entry):
@@ -396,7 +402,8 @@ def _voxel_ranks(points, owners, spacing):
     return key, rank
 
 
-def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None, albedo=None, orders="all"):
+def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None, albedo=None, orders="all",
+                        oblique=True):
     """``E_ind`` (N, 3) numpy: paper Eq. 2 over the light that reaches the points after at least one bounce.
 
     Cosine-weighted directions (pdf ``cos / pi``): a point with ``P`` paths gets
@@ -423,10 +430,12 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
     stop : callable, optional
         Asked between chunks; when it returns True the rest is left out (Ctrl-C).
     albedo : (3,) array_like, optional
-        The medium's reduced albedo: each path weighted by its oblique-incidence gain (:class:`Entry`).
+        The medium's reduced albedo: each path weighted by its gain (:class:`Entry`).
     orders : str
         What the profile carries (:class:`Entry`); the light counts with all its orders whatever it is: the shader
         traces the single scattering of direct light only, so that of indirect light stays in the profile.
+    oblique : bool
+        Each path's gain at its own angle (Eq. O1), or the normal beam's (the paper's normal incidence).
 
     Returns
     -------
@@ -434,7 +443,7 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         (N, 3) indirect irradiance, >= 0.
     """
     n = dr.width(position)
-    entry = Entry(eta, albedo, "all", carried=orders)
+    entry = Entry(eta, albedo, "all", carried=orders, oblique=oblique)
     per_point = max(1, round(paths)) if paths >= 1 else 1
     if paths >= 1:
         owners = np.repeat(np.arange(n), per_point)
