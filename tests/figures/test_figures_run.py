@@ -12,6 +12,7 @@ from click.testing import CliRunner
 
 from convsss.cli import cli
 from convsss.figures import FIGURES
+from convsss.figures.render import PROFILE_COLUMNS
 from convsss.image import read_image
 
 
@@ -50,7 +51,8 @@ def test_report_has_a_row_with_finite_errors_for_every_panel(quick_run):
     report = (out / "report.md").read_text()
     for figure in data["figures"]:
         section = report.split(f"## {figure['title']}")[1].split("\n## ")[0]
-        rows = [line for line in section.splitlines() if line.startswith("| ") and not line.startswith("| panel")]
+        table = next(block for block in section.split("\n\n") if block.startswith("| panel"))
+        rows = [line for line in table.splitlines() if line.startswith("| ") and not line.startswith("| panel")]
         assert len(rows) == len(figure["panels"]), figure["key"]
         for panel, row in zip(figure["panels"], rows):
             assert row.startswith(f"| {panel['title']} |")
@@ -66,6 +68,23 @@ def test_report_has_a_row_with_finite_errors_for_every_panel(quick_run):
     assert "## Where this disagrees with the paper, explained" in report
 
 
+def test_figures_against_path_tracing_report_every_profile_column(quick_run):
+    """Each exact-sum column (every model at the paper's setting, and the renderer's own physics) against volpathmis,
+    per scene; the dipole's column is the exact panel's (the same sum: the dipole is the default model)."""
+    out, data = quick_run
+    report = (out / "report.md").read_text()
+    for figure in (f for f in data["figures"] if f["versus_pt"]):
+        scenes = {p["scene"]["material"] for p in figure["panels"]}
+        assert len(figure["profiles"]) == len(scenes)
+        for row in figure["profiles"]:
+            assert list(row["columns"]) == list(PROFILE_COLUMNS)
+            assert all(_finite(summary) for summary in row["columns"].values()), (figure["key"], row["scene"])
+            assert f"| {row['scene']} |" in report
+        exact = next(p for p in figure["panels"] if p["method"] == "exact")
+        if len(scenes) == 1:
+            assert figure["profiles"][0]["columns"]["dipole"]["mre"] == pytest.approx(exact["vs_pt"]["mre"])
+
+
 def test_fig2_counts_fewer_convolutions_for_the_larger_bunny_and_the_larger_threshold(quick_run):
     _, data = quick_run
     c = {p["panel"]: p["c"] for p in data["figures"][0]["panels"]}
@@ -79,7 +98,7 @@ def test_second_run_reuses_the_cached_references(quick_run):
     result = run("figures", "--quick", "--only", "fig5", "--output", out, "--no-progress")
     assert result.exit_code == 0, result.output
     data = json.loads((out / "figures.json").read_text())
-    assert data["cache"] == {"hits": 2, "misses": 0, "root": "cache"}
+    assert data["cache"] == {"hits": 2 + len(PROFILE_COLUMNS), "misses": 0, "root": "cache"}
     panels = {p["panel"]: p for p in data["figures"][0]["panels"]}
     assert panels["exact"]["cached"] and panels["volpathmis"]["cached"]
-    assert "2 reused from `cache/`, 0 rendered" in (out / "report.md").read_text()
+    assert f"{2 + len(PROFILE_COLUMNS)} reused from `cache/`, 0 rendered" in (out / "report.md").read_text()

@@ -14,6 +14,7 @@ import warnings
 import numpy as np
 
 from ..backend import load_mitsuba
+from ..profiles.models import PROFILE_MODELS
 from ..scene.params import RenderParams
 from .scenes import load, scene_dict
 
@@ -25,6 +26,14 @@ from .scenes import load, scene_dict
 #: single scattering in the profile.
 BASE_PARAMS = {"specular": "phong", "correction": "none", "profile_samples": 0, "incidence": "normal",
                "profile_total": "model", "single_scattering": "profile"}
+
+
+#: The exact sums a figure compared with path tracing also reports against ``volpathmis``, one column each: every
+#: profile model at the paper's setting, and the renderer's own physics (its defaults for the parameters the paper's
+#: setting pins: the default model at the exact total, oblique incidence, single scattering traced).
+PROFILE_COLUMNS = {**{model: {"profile": model} for model in PROFILE_MODELS},
+                   "renderer": {name: RenderParams().to_dict()[name]
+                                for name in ("incidence", "profile_total", "single_scattering")}}
 
 
 def panel_params(method, params):
@@ -80,7 +89,7 @@ def render_convsss(scene, params, spp, seed=0, progress=None):
     return image, summary
 
 
-def exact_reference(spec, cache, resolution, spp, seed=0, specular="phong"):
+def exact_reference(spec, cache, resolution, spp, seed=0, specular="phong", overrides=None):
     """The ``exact``-transport render of ``spec`` (full-resolution samples), from ``cache`` or rendered now.
 
     Returns ``(image, meta, hit)``.
@@ -94,6 +103,9 @@ def exact_reference(spec, cache, resolution, spp, seed=0, specular="phong"):
     spp, seed : int
     specular : str
         The integrator's specular term (``phong`` as the figures' panels).
+    overrides : dict, optional
+        Integrator parameters over the paper's setting (:data:`BASE_PARAMS`), e.g. a column of
+        :data:`PROFILE_COLUMNS`.
 
     Returns
     -------
@@ -105,7 +117,7 @@ def exact_reference(spec, cache, resolution, spp, seed=0, specular="phong"):
     hit : bool
         Whether it came from the cache.
     """
-    params = RenderParams(**{**BASE_PARAMS, "specular": specular, "transport": "exact"})
+    params = RenderParams(**{**BASE_PARAMS, **(overrides or {}), "specular": specular, "transport": "exact"})
 
     def render():
         with warnings.catch_warnings():

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import json_ready, write_text
+from .render import PROFILE_COLUMNS
 
 #: The paper's numbers quoted against ours (Munoz et al. 2011, §5 and Fig. 2).
 PAPER_C = {("small", 0.001): 7, ("large", 0.001): 1, ("small", 0.05): 2}
@@ -73,6 +74,17 @@ def _table(records, versus_pt):
             cells += [_pct(p.get("mre")), _num(p.get("ratio"), 3)]
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join(rows)
+
+
+def _profile_table(rows):
+    """Per scene, each exact-sum column (:data:`~convsss.figures.render.PROFILE_COLUMNS`) against volpathmis: mean
+    relative error and ratio of means."""
+    columns = list(rows[0]["columns"])
+    lines = ["| scene | " + " | ".join(f"{c}: err / ratio" for c in columns) + " |", "|" + "---|" * (1 + len(columns))]
+    for row in rows:
+        cells = [f"{_pct(row['columns'][c]['mre'])} / {_num(row['columns'][c]['ratio'], 3)}" for c in columns]
+        lines.append(f"| {row['scene']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def _by(figure, key):
@@ -435,6 +447,12 @@ def write_report(out, run):
         if f["notes"]:
             lines += [f"Here: {f['notes']}", ""]
         lines += [f"![{key}]({f['sheet']})", "", _table(f["panels"], f["versus_pt"]), ""]
+        if f.get("profiles"):
+            own = ", ".join(f"{k} {v}" for k, v in PROFILE_COLUMNS["renderer"].items())
+            lines += ["The exact sum with each profile model at the paper's setting (its own total, every direction "
+                      "a normal beam, single scattering in the profile), and with the renderer's defaults for what "
+                      f"that setting pins (\"renderer\": {own}), against volpathmis:", "",
+                      _profile_table(f["profiles"]), ""]
         if f.get("errors_sheet"):
             lines += ["Where the panels differ from the exact sum (signed relative luminance error, blue darker, red "
                       "brighter):", "", f"![{key} errors]({f['errors_sheet']})", ""]

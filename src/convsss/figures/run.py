@@ -21,7 +21,7 @@ import numpy as np
 from ..compare import compare
 from ..errors import ConvsssError
 from .cache import ReferenceCache
-from .render import exact_reference, panel_params, path_traced_reference, render_convsss
+from .render import PROFILE_COLUMNS, exact_reference, panel_params, path_traced_reference, render_convsss
 from .scenes import load
 from .specs import FIGURES
 
@@ -111,8 +111,9 @@ class Runner:
         -------
         dict
             Per :class:`~convsss.figures.scenes.SceneSpec`, the ``exact`` reference and, for a figure compared with
-            path tracing, the ``volpathmis`` one: each ``(image, meta, hit)`` with ``image`` linear RGB of shape
-            (error_resolution, error_resolution, 3), float64 (:func:`~convsss.figures.render.exact_reference`).
+            path tracing, the ``volpathmis`` one and under ``profiles`` the exact sum of each column of
+            :data:`~convsss.figures.render.PROFILE_COLUMNS`: each ``(image, meta, hit)`` with ``image`` linear RGB of
+            shape (error_resolution, error_resolution, 3), float64 (:func:`~convsss.figures.render.exact_reference`).
         """
         s = self.settings
         refs = {}
@@ -123,7 +124,20 @@ class Runner:
                 self._status(f"volpathmis reference: {spec.material} {spec.mesh}")
                 refs[spec]["volpathmis"] = path_traced_reference(spec, self.cache, s.error_resolution, s.pt_spp,
                                                                  s.pass_spp, s.seed, self.progress)
+                refs[spec]["profiles"] = {}
+                for name, overrides in PROFILE_COLUMNS.items():
+                    self._status(f"exact sum, {name}: {spec.material} {spec.mesh}")
+                    refs[spec]["profiles"][name] = exact_reference(spec, self.cache, s.error_resolution, s.error_spp,
+                                                                   s.seed, overrides=overrides)
         return refs
+
+    def profile_rows(self, refs):
+        """Per scene of a figure compared with path tracing: ``{"scene", "columns": {column: error summary}}``, each
+        column of :data:`~convsss.figures.render.PROFILE_COLUMNS` against ``volpathmis`` (:func:`error_summary`)."""
+        return [{"scene": spec.describe(),
+                 "columns": {name: error_summary(ref["volpathmis"][0], image, self.settings.block)
+                             for name, (image, _, _) in ref["profiles"].items()}}
+                for spec, ref in refs.items() if "profiles" in ref]
 
     # --- one panel ----------------------------------------------------------------------------------------------------
     def panel(self, figure, panel, refs):
@@ -240,6 +254,7 @@ class Runner:
         return {"key": name, "title": figure.title, "paper": figure.paper, "notes": figure.notes,
                 "columns": figure.columns, "versus_pt": figure.versus_pt, "panels": records,
                 "sheet": str(sheet.relative_to(self.out)), "errors_sheet": errors_sheet,
+                "profiles": self.profile_rows(refs),
                 "seconds": time.perf_counter() - start, "warnings": messages}
 
     def run(self, names):
