@@ -23,7 +23,7 @@ from .slab import slab_tally
 SLAB_FORMAT = 1
 #: Bins whose tally is noisier than this (relative standard error) are left out of the profile error.
 NOISE_LIMIT = 0.1
-#: The key and title of the exact half-space total in a result's ``models`` (a total, no profile).
+#: The key and title of the exact half-space total among the models of :func:`summary` (a total, no profile).
 EXACT = "exact total"
 EXACT_TITLE = "Exact half-space total (every model's total under profile_total exact, the default)"
 
