@@ -219,18 +219,21 @@ class Shader:
         lobe = mi.fresnel(dr.abs(cos_l), eta)[0] * (e + 2.0) / (2.0 * dr.pi) * dr.power(cos_a, e)
         return dr.select(cos_l > 0, light * lobe * cos_l, 0.0)
 
-    def _light_samples(self, si, u, active):
-        """Emitter samples ``(ds, L/pdf)`` at ``si``: one per emitter when there are few (no selection noise), else
-        one emitter picked by the scene (as Mitsuba's ``path`` does)."""
-        if self.per_emitter:
-            out = []
-            for emitter in self.scene.emitters():
-                ds, light = emitter.sample_direction(si, u, active)
+    def _light_samples(self, it, u, active, test_visibility=True):
+        """Emitter samples ``(ds, L/pdf)`` at ``it``: one per emitter when there are few (no selection noise), else
+        one emitter picked by the scene (as Mitsuba's ``path`` does); with ``test_visibility``, ``L/pdf`` is 0 where
+        a shadow ray from ``it`` (a surface interaction) finds the emitter hidden."""
+        if not self.per_emitter:
+            return [self.scene.sample_emitter_direction(it, u, test_visibility, active)]
+        out = []
+        for emitter in self.scene.emitters():
+            ds, light = emitter.sample_direction(it, u, active)
+            if test_visibility:
                 visible = active & (ds.pdf > 0)
-                visible &= ~self.scene.ray_test(si.spawn_ray_to(ds.p), visible)
-                out.append((ds, dr.select(visible, light, 0.0)))
-            return out
-        return [self.scene.sample_emitter_direction(si, u, True, active)]
+                visible &= ~self.scene.ray_test(it.spawn_ray_to(ds.p), visible)
+                light = dr.select(visible, light, 0.0)
+            out.append((ds, light))
+        return out
 
     def _direct(self, si, bsdf, ray_d, eta, translucent, opaque, alive, ds, light):
         """One emitter sample's contribution: the BSDF (power-heuristic MIS) on opaque shapes; on translucent ones the
@@ -278,11 +281,7 @@ class Shader:
         it.p, it.time, it.wavelengths = ray(t), si.time, si.wavelengths
         scattered = sigma_s * dr.exp(-sigma_t * t) / pdf * fresnel_transmittance(eta, cos_o) / (4.0 * dr.pi * eta * eta)
         out = dr.zeros(mi.Color3f, n_lanes)
-        if self.per_emitter:
-            samples = [emitter.sample_direction(it, u_emitter, inside) for emitter in self.scene.emitters()]
-        else:
-            samples = [self.scene.sample_emitter_direction(it, u_emitter, False, inside)]
-        for ds, light in samples:
+        for ds, light in self._light_samples(it, u_emitter, inside, test_visibility=False):
             lit = inside & (ds.pdf > 0)
             boundary = self.scene.ray_intersect(mi.Ray3f(it.p, ds.d), lit)
             # x_t is inside the object (closed, oriented) iff the ray towards the light first leaves it.
