@@ -21,6 +21,12 @@ def check_eta(eta):
     return value
 
 
+def same_eta(a, b):
+    """Whether two relative indices are the same at the float32 precision Mitsuba stores a BSDF's ``eta`` in (a
+    preset's 1.4 and the scene's 1.39999998 are one index)."""
+    return bool(np.float32(a) == np.float32(b))
+
+
 def fresnel_reflectance(eta, cos_theta):
     """Unpolarized Fresnel reflectance of a smooth dielectric boundary.
 

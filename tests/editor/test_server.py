@@ -56,3 +56,57 @@ def test_only_loopback_addresses_may_be_bound(host):
     with pytest.raises(ConvsssError, match="loopback"):
         EditorServer(None, host, 0)
     assert check_loopback("127.0.0.1") == "127.0.0.1"
+
+
+def _raw(server, method, path, headers, body=b""):
+    """A request with exactly ``headers`` (no Content-Type added): (status, JSON body)."""
+    connection = http.client.HTTPConnection("127.0.0.1", server.server_address[1], timeout=120)
+    connection.putrequest(method, path)
+    for name, value in headers.items():
+        connection.putheader(name, value)
+    connection.endheaders(body)
+    response = connection.getresponse()
+    return response.status, json.loads(response.read() or b"{}")
+
+
+def test_no_other_page_can_drive_the_editor(editor_server):
+    """Issue 30, defect 4: a cross-origin "simple" POST (text/plain, no preflight) and an ``Origin`` other than the
+    page's own (``null`` included) are refused, and the material is unchanged; the page's own origin works."""
+    before = editor_server.session.state()["material"]
+    body = json.dumps({"sigma_a": [0.3, 0.3, 0.3]}).encode()
+    length = {"Content-Length": str(len(body))}
+    assert _raw(editor_server, "POST", "/api/update", {"Content-Type": "text/plain", **length}, body)[0] == 415
+    for origin in ("http://evil.example", "null", "http://127.0.0.1:1"):
+        status, reply = _raw(editor_server, "POST", "/api/update", {"Content-Type": "application/json",
+                                                                     "Origin": origin, **length}, body)
+        assert status == 403 and "own page" in reply["error"]
+    assert editor_server.session.state()["material"] == before
+    own = f"http://127.0.0.1:{editor_server.server_address[1]}"
+    status, reply = _raw(editor_server, "POST", "/api/update", {"Content-Type": "application/json", "Origin": own,
+                                                                 **length}, body)
+    assert status == 200 and reply["material"]["sigma_a"] == [0.3, 0.3, 0.3]
+
+
+def test_bad_lengths_and_idle_clients_block_nobody(editor_server):
+    """Issue 30, defect 12: ``Content-Length: -1`` and a body over the limit are refused without reading it; an idle
+    connection and a POST whose body never comes do not stop another client from being served (each connection
+    has its own thread; the others time out)."""
+    import socket
+
+    from convsss.editor.server import MAX_BODY
+
+    json_type = {"Content-Type": "application/json"}
+    assert _raw(editor_server, "POST", "/api/update", {**json_type, "Content-Length": "-1"})[0] == 411
+    assert _raw(editor_server, "POST", "/api/update", {**json_type, "Content-Length": str(MAX_BODY + 1)})[0] == 413
+    address = ("127.0.0.1", editor_server.server_address[1])
+    idle = socket.create_connection(address)
+    short = socket.create_connection(address)
+    short.sendall(b"POST /api/update HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+                  b"Content-Length: 100\r\n\r\n{}")
+    try:
+        connection = http.client.HTTPConnection(*address, timeout=5)  # under the server's TIMEOUT of 10 s
+        connection.request("GET", "/api/state")
+        assert connection.getresponse().status == 200
+    finally:
+        idle.close()
+        short.close()

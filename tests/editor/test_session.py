@@ -105,3 +105,36 @@ def test_a_preset_and_the_profile_plot(session):
     assert state["material"]["name"] == "Marble" and state["last"]["rebuilt"] == "transport"  # null boundary: eta 1
     assert s.profile_png()[:8] == b"\x89PNG\r\n\x1a\n" and s.image_png()[:4] == b"\x89PNG"
     assert len(state["presets"]) == 47
+
+
+def test_a_refused_edit_leaves_the_session_as_it_was(session):
+    """Issue 30, defect 5: an edit that fails (an eta below 1, coefficients that overflow, an eta Fresnel cannot
+    take) changes neither the state nor the scene, and the session goes on serving and editing."""
+    s = session(boundary="dielectric")
+    state = s.state()
+    for changes in ({"eta": 0.5}, {"sigma_a": 1e308}, {"eta": 1e308}, {"sigma_s_prime": [1e308, 1, 1]}):
+        with pytest.raises(ConvsssError):
+            s.update(**changes)
+        assert s.state() == state, changes
+        assert s.profile_png()[:4] == b"\x89PNG"
+    assert s.update(sigma_a=[0.1, 0.1, 0.1])["material"]["sigma_a"] == [0.1, 0.1, 0.1]
+
+
+def test_a_preset_then_an_accuracy_edit_on_a_dielectric(session):
+    """Issue 30, defect 6: a preset's eta (float64) and the scene's (float32) are one index, so the transport alone
+    is rebuilt after it."""
+    s = session(boundary="dielectric")
+    assert s.update(preset="wholemilk")["last"]["rebuilt"] == "prepare"  # eta 1.3 after skin1's 1.4
+    assert s.update(accuracy=0.03)["last"]["rebuilt"] == "transport"
+    assert s.update(model="dipole")["last"]["rebuilt"] == "transport"
+
+
+def test_json_values_of_the_wrong_type_are_refused(session):
+    """Issue 30, defect 14: JSON ``true`` is no number and a list is no preset name."""
+    s = session()
+    state = s.state()
+    for changes in ({"accuracy": True}, {"preset": ["wholemilk"]}, {"color": [True, 0.5, 0.5]}, {"eta": "1.3"},
+                    {"mfp_mm": [1, 2]}, {"model": 3}):
+        with pytest.raises(ConvsssError, match="is not allowed"):
+            s.update(**changes)
+    assert s.state() == state

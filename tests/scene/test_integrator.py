@@ -266,21 +266,22 @@ def test_absurdly_long_irradiance_is_refused_before_it_starts(mi, sphere_scene):
 
 def test_open_disk_and_non_reflecting_channel_render_without_stray_warnings(mi, sphere_scene):
     """A translucent disk renders (one warning: not closed); coke (reduced albedo 0 in blue, R_total = 0) renders
-    with one warning (optically thin) and no numpy division warnings."""
+    with its two warnings (optically thin, and under one mean free path across at 4 mm) and no numpy division
+    warnings."""
     from convsss.materials import OpticallyThinWarning
     from convsss.scene.materials import translucent
-    from convsss.scene.objects import MeshWarning
+    from convsss.scene.objects import MeshWarning, UnitsWarning
 
     disk = sphere_scene()
     disk["object"] = translucent({"type": "disk", "to_world": mi.ScalarTransform4f().scale(2.0)},
                                  convsss.material("skin1"), boundary="null")
     coke = sphere_scene(material="coke")
-    for scene_dict, expected in ((disk, MeshWarning), (coke, OpticallyThinWarning)):
+    for scene_dict, expected in ((disk, [MeshWarning]), (coke, [OpticallyThinWarning, UnitsWarning])):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             scene = mi.load_dict(scene_dict)
             image = np.array(scene.integrator().render(scene, scene.sensors()[0]))
-        assert [w.category for w in caught] == [expected], [str(w.message) for w in caught]
+        assert [w.category for w in caught] == expected, [str(w.message) for w in caught]
         assert np.all(np.isfinite(image)) and image.min() >= 0
 
 

@@ -79,6 +79,17 @@ def test_wrong_units_warn(mi):
         _objects(mi, {"s": translucent({"type": "sphere", "radius": 1e-4}, skin)})
 
 
+def test_an_object_under_one_mean_free_path_warns_with_its_span_and_unit(mi):
+    """A unit mistake that lands inside the span limits (a 0.04 mm object, issue 30): one line naming the span in
+    mean free paths and the scene's unit_mm; one of several mean free paths says nothing."""
+    skin = convsss.material("skin1")
+    with pytest.warns(UnitsWarning, match=r"spans 0\.0\d+-0\.\d+ mean free paths .*unit_mm = 1 mm"):
+        _objects(mi, {"s": translucent({"type": "sphere", "radius": 0.02}, skin)})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitsWarning)
+        _objects(mi, {"s": translucent({"type": "sphere", "radius": 2.0}, skin)})
+
+
 def _instances(mi, shape, transforms):
     """A shapegroup ``g`` holding the translucent ``shape`` and an opaque cube, drawn by one instance per transform."""
     group = {"type": "shapegroup", "s": translucent(shape, convsss.material("skin1")), "c": {"type": "cube"}}

@@ -56,7 +56,7 @@ def test_a_dense_medium_gets_the_profile_rule_count(mi, sphere_scene):
 def test_the_profile_rule_is_capped_with_a_warning(mi, sphere_scene, monkeypatch):
     """A count above the rule's share of the memory guard is cut to it (never below the pixel rule), with a
     warning; the render goes on."""
-    from convsss.scene import integrator as module
+    from convsss.scene import plan as module
 
     scene = _dense_sphere(mi, sphere_scene)
     integrator = scene.integrator()

@@ -112,3 +112,29 @@ def test_unknown_and_bad_parameters_fail_in_one_line(kind):
         with pytest.raises(ConvsssError, match=f"{p.name}=") as info:
             make_transport(kind, _sphere(100), skin, FRAME, **{p.name: bad})
         assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_planned_bytes_are_known_before_the_samples_and_bound_what_is_built(kind):
+    """A plan (:mod:`convsss.scene.plan`) asks a transport what it will hold from the samples' bounds alone, before any
+    sample exists: a number >= 0, at least the structures the built transport holds (the multiscale far-field
+    spectra, the convolution's layers) and not many times more."""
+    cls = TRANSPORTS[kind]
+    skin = material("skin1").profile()
+    sphere = _sphere(radius=3.0)
+    view = FRAME.to_view(sphere.position)
+    bounds = np.array([view.min(axis=0), view.max(axis=0)])
+    params = {**ACCURATE.get(kind, {}), **({"cell_size": 0.05} if cls.accepts("cell_size") else {})}
+    if kind == "convolution":
+        params.pop("resolution")
+    planned = cls.planned_bytes(bounds, skin, len(sphere), params)
+    assert isinstance(planned, int) and planned >= 0
+    assert cls.layer_cell(0.2, {}) == 0.2 or kind == "convolution"
+    built = make_transport(kind, sphere, skin, FRAME, **params)
+    if kind == "multiscale":
+        from convsss.transport.multiscale import far_bytes
+
+        assert far_bytes(built.fft_shape) <= planned <= 1.2 * far_bytes(built.fft_shape) + 2**20
+    if kind == "convolution":
+        assert planned == built.memory_bytes
+        assert cls.layer_cell(0.2, {"downsample": 0.5}) == 0.4

@@ -8,9 +8,11 @@ loopback interface only (the standard library's ``http.server``; no dependency).
     GET  /image.png       the last render, tone-mapped
     GET  /profile.png     ``r R_d(r)`` of the edited object's profile
 
-Requests are served one at a time (a render holds the session's lock anyway). Only ``127.0.0.1``, ``::1`` and
-``localhost`` may be bound, and requests must name one of them in their ``Host`` header (a page elsewhere cannot
-reach the API through DNS rebinding).
+Each connection has a thread of its own and :data:`TIMEOUT` seconds to send its request (an idle or short-bodied
+client blocks nobody); edits wait for the session's lock. Only ``127.0.0.1``, ``::1`` and ``localhost`` may be bound,
+and requests must name one of them in their ``Host`` header (a page elsewhere cannot reach the API through DNS
+rebinding). An update must be ``application/json`` of at most :data:`MAX_BODY` bytes, and a browser's ``Origin``,
+when sent, must be the editor's own page: a page elsewhere cannot drive it with a cross-origin "simple" POST.
 """
 
 import http.server
@@ -22,6 +24,10 @@ from ..errors import ConvsssError
 
 #: Hosts the server may bind and that requests may name.
 LOOPBACK = ("127.0.0.1", "::1", "localhost")
+#: Seconds a connection may take to send its request.
+TIMEOUT = 10.0
+#: The largest update body, in bytes (an edit is a few hundred).
+MAX_BODY = 1 << 16
 
 
 def check_loopback(host):
@@ -41,6 +47,7 @@ class EditorHandler(http.server.BaseHTTPRequestHandler):
     """Serves :attr:`server.session` (an :class:`EditSession`)."""
 
     server_version = "convsss-edit"
+    timeout = TIMEOUT
 
     def log_message(self, format, *args):  # quiet: the command prints the URL and errors only
         pass
@@ -79,25 +86,60 @@ class EditorHandler(http.server.BaseHTTPRequestHandler):
         else:
             self._json(404, {"error": f"no {path}"})
 
+    def _same_origin(self):
+        """A browser's ``Origin`` (sent with every cross-origin POST) must be this page's own: ``http://`` and the
+        ``Host`` the request names. ``null`` (a sandboxed or file page) is another origin."""
+        origin = self.headers.get("Origin")
+        if origin is not None and origin != f"http://{self.headers.get('Host')}":
+            self._json(403, {"error": f"updates come from the editor's own page, not from {origin!r}"})
+            return False
+        return True
+
+    def _body(self):
+        """The update's bytes, or None after a 4xx reply: ``application/json``, a valid length of at most
+        :data:`MAX_BODY`."""
+        kind = (self.headers.get("Content-Type") or "").split(";", 1)[0].strip().lower()
+        if kind != "application/json":
+            self._json(415, {"error": "an update is sent as Content-Type: application/json"})
+            return None
+        length = self.headers.get("Content-Length") or ""
+        if not length.isdigit():
+            self.close_connection = True
+            self._json(411, {"error": "an update needs a Content-Length of its bytes"})
+            return None
+        if int(length) > MAX_BODY:
+            self.close_connection = True
+            self._json(413, {"error": f"an update is at most {MAX_BODY} bytes"})
+            return None
+        return self.rfile.read(int(length))
+
     def do_POST(self):
-        if not self._local():
+        if not (self._local() and self._same_origin()):
             return
         if self.path.split("?", 1)[0] != "/api/update":
             self._json(404, {"error": f"no {self.path}"})
             return
         try:
-            changes = json.loads(self.rfile.read(int(self.headers.get("Content-Length") or 0)) or b"{}")
+            body = self._body()
+            if body is None:
+                return
+            changes = json.loads(body or b"{}")
             if not isinstance(changes, dict):
                 raise ConvsssError("an update is a JSON object of changes")
             self._json(200, self.server.session.update(**changes))
+        except TimeoutError:  # a body shorter than its Content-Length: drop the connection
+            self.close_connection = True
         except (ConvsssError, ValueError, TypeError) as error:
             self._json(400, {"error": str(error)})
+        except Exception as error:  # the session kept its state (an edit is applied whole or not at all)
+            self._json(500, {"error": f"the edit failed and was undone: {type(error).__name__}: {error}"})
 
 
-class EditorServer(socketserver.TCPServer):
-    """An HTTP server on a loopback address, holding the session its handler serves."""
+class EditorServer(socketserver.ThreadingMixIn, socketserver.TCPServer):
+    """An HTTP server on a loopback address, a thread per connection, holding the session its handler serves."""
 
     allow_reuse_address = True
+    daemon_threads = True
 
     def __init__(self, session, host="127.0.0.1", port=0):
         import socket

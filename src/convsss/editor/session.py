@@ -43,6 +43,8 @@ from ..profiles.models import (
 TABULATED = "tabulated"
 #: What an edit may set (the JSON API's keys).
 FIELDS = ("preset", "color", "mfp_mm", "sigma_s_prime", "sigma_a", "eta", "model", "accuracy")
+#: The largest relative index an edit may set (no transparent material reaches 4 in the visible).
+MAX_ETA = 4.0
 
 
 def model_name(profile):
@@ -55,6 +57,28 @@ def model_name(profile):
     if isinstance(profile, TabulatedProfile):
         return TABULATED
     raise ConvsssError(f"the editor does not know the profile {profile!r}")
+
+
+def _check_types(changes):
+    """A one-line error for a change of the wrong JSON type: names are strings, numbers are numbers (not
+    booleans), colours and coefficients one number or a list of three."""
+
+    def number(x):
+        return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+    for key, value in changes.items():
+        if value is None:
+            continue
+        if key in ("preset", "model"):
+            ok = isinstance(value, str)
+        elif key in ("eta", "accuracy"):
+            ok = number(value)
+        else:
+            ok = number(value) or (isinstance(value, list) and len(value) == 3 and all(map(number, value)))
+        if not ok:
+            kind = "a name" if key in ("preset", "model") else "a number" if key in ("eta", "accuracy") else \
+                "one number or three (R, G, B)"
+            raise ConvsssError(f"{key}={value!r} is not allowed: give {kind}")
 
 
 def _triple(value, name):
@@ -101,7 +125,7 @@ class EditSession:
         if params is None:
             params = RenderParams(**(scene_parameters(scene) or {}))
         self.integrator = self.mi.load_dict(params.integrator_dict())
-        self.lock = threading.Lock()
+        self.lock = threading.RLock()  # edits and reads from the server's threads, one at a time
         self.version = 0
         self._png = self._profile_png = None
         self._tonemap = None
@@ -150,6 +174,10 @@ class EditSession:
 
     def state(self):
         """JSON-ready: the object, its material, model, the transport's accuracy, the choices and the last timings."""
+        with self.lock:
+            return self._state()
+
+    def _state(self):
         m, p = self.material, self.integrator.params
         accuracy = p.transport_params().get("accuracy")
         models = list(PROFILE_MODELS) + ([TABULATED] if self._tabulated is not None else [])
@@ -171,10 +199,15 @@ class EditSession:
 
     def image_png(self):
         """The last render, tone-mapped, as PNG bytes."""
-        return self._png
+        with self.lock:
+            return self._png
 
     def profile_png(self):
         """``r R_d(r)`` of the edited object's profile (:func:`convsss.profiles.plot.plot_profiles`) as PNG bytes."""
+        with self.lock:
+            return self._plot_profile()
+
+    def _plot_profile(self):
         if self._profile_png is None:
             from ..profiles.plot import plot_profiles
 
@@ -196,43 +229,55 @@ class EditSession:
         unknown = sorted(set(changes) - set(FIELDS))
         if unknown:
             raise ConvsssError(f"the editor cannot set {unknown[0]!r}: it sets {', '.join(FIELDS)}")
-        from ..scene.irradiance import keeps_irradiance
-
+        _check_types(changes)
         with self.lock, warnings.catch_warnings():
             warnings.simplefilter("ignore", OpticallyThinWarning)
-            start = time.perf_counter()
-            model = self.model if changes.get("model") is None else changes["model"]
-            if model != TABULATED or self._tabulated is None:
-                check_model(model)
-            material = self._material(changes, model)
-            params = self._params(changes.get("accuracy"))
-            if not keeps_irradiance(self.material, material, params.incidence, params.orders):
-                rebuilt = "prepare"
-            elif (model != self.model or params.to_dict() != self.integrator.params.to_dict()
-                  or not (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)
-                          and np.array_equal(material.sigma_a, self.material.sigma_a))):
-                rebuilt = "transport"
-            else:
-                rebuilt = None
-            if rebuilt is None:
-                return self.state()
-            self._write_scene(material)
-            self.material, self.model = material, model
-            profile = self.profile()
-            if rebuilt == "prepare":
-                default, per_object = parse_profile_spec(params.profile)
-                if model != TABULATED:
-                    per_object.update({o.name: model for o in self.objects if o.shape is self.target.shape})
-                spec = ",".join([default] + [f"{k}={v}" for k, v in per_object.items()])
-                self.integrator.params = self._with(params, profile=spec)
-                self.integrator.prepare(self.scene, self.sensor, self.seed)  # reads the material from the scene
-            else:
-                self.integrator.retransport([replace(o, material=material, profile=profile)
-                                             if o.shape is self.target.shape else o for o in self.objects], params)
-            self.target = self._pick(self.objects, self.target.name)
-            self._profile_png = None
-            self._render(rebuilt, start)
+            kept, checkpoint = (self.material, self.model, self.target), self.integrator.checkpoint()
+            try:
+                return self._update(changes)
+            except BaseException:  # applied whole or not at all: the scene, the material and the prepared state
+                self._write_scene(kept[0], eta=True)
+                self.material, self.model, self.target = kept
+                self.integrator.restore(checkpoint)
+                raise
+
+    def _update(self, changes):
+        """:meth:`update` under the lock; an exception leaves the caller to restore what it changed."""
+        from ..scene.irradiance import keeps_irradiance
+
+        start = time.perf_counter()
+        model = self.model if changes.get("model") is None else changes["model"]
+        if model != TABULATED or self._tabulated is None:
+            check_model(model)
+        material = self._material(changes, model)
+        params = self._params(changes.get("accuracy"))
+        if not keeps_irradiance(self.material, material, params.incidence, params.orders):
+            rebuilt = "prepare"
+        elif (model != self.model or params.to_dict() != self.integrator.params.to_dict()
+              or not (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)
+                      and np.array_equal(material.sigma_a, self.material.sigma_a))):
+            rebuilt = "transport"
+        else:
+            rebuilt = None
+        if rebuilt is None:
             return self.state()
+        self._write_scene(material)
+        self.material, self.model = material, model
+        profile = self.profile()
+        if rebuilt == "prepare":
+            default, per_object = parse_profile_spec(params.profile)
+            if model != TABULATED:
+                per_object.update({o.name: model for o in self.objects if o.shape is self.target.shape})
+            spec = ",".join([default] + [f"{k}={v}" for k, v in per_object.items()])
+            self.integrator.params = self._with(params, profile=spec)
+            self.integrator.prepare(self.scene, self.sensor, self.seed)  # reads the material from the scene
+        else:
+            self.integrator.retransport([replace(o, material=material, profile=profile)
+                                         if o.shape is self.target.shape else o for o in self.objects], params)
+        self.target = self._pick(self.objects, self.target.name)
+        self._profile_png = None
+        self._render(rebuilt, start)
+        return self.state()
 
     def _material(self, changes, model):
         m = self.material
@@ -254,6 +299,9 @@ class EditSession:
             m = Material.from_reduced(s, a, eta)
         if changes.get("eta") is not None:
             eta = float(changes["eta"])
+            if not 1.0 <= eta <= MAX_ETA:
+                raise ConvsssError(f"eta={changes['eta']!r} is not allowed: a translucent object's relative index "
+                                   f"is between 1 and {MAX_ETA:g}")
             if not self.eta_editable and eta != 1.0:
                 raise ConvsssError(f"object {self.target.name!r} has a null (index-matched) boundary: its eta is 1; "
                                    "give it a dielectric boundary in the scene to edit eta")
@@ -274,9 +322,9 @@ class EditSession:
             raise ConvsssError(f"the {p.transport} transport has no accuracy knob (the multiscale transport has)")
         return self._with(p, accuracy=float(accuracy))
 
-    def _write_scene(self, material):
+    def _write_scene(self, material, eta=False):
         """The edited object's medium (``sigma_t``, ``albedo``, ``scale`` per scene unit, its phase's ``g`` kept) and
-        boundary ``eta``, in the loaded scene."""
+        boundary ``eta`` (when it changes, or with ``eta``), in the loaded scene."""
         from ..scene.presets import forget
 
         mi, obj = self.mi, self.target
@@ -291,7 +339,7 @@ class EditSession:
         medium["albedo.value.value"] = mi.Color3f(*[float(x) for x in sigma_s * unit / sigma_t])
         medium["scale"] = scale
         medium.update()
-        if self.eta_editable and material.eta != self.material.eta:
+        if self.eta_editable and (eta or material.eta != self.material.eta):
             bsdf = mi.traverse(obj.shape.bsdf())
             bsdf["eta"] = material.eta
             bsdf.update()

@@ -18,8 +18,6 @@
 Per-stage seconds and everything a user needs to judge the run are in :attr:`ConvsssIntegrator.stats`.
 """
 
-import math
-import warnings
 from dataclasses import dataclass, field
 
 import drjit as dr
@@ -27,15 +25,16 @@ import numpy as np
 
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
-from ..memory import USABLE_FRACTION, available_memory, check_memory
+from ..fresnel import same_eta
 from ..samples import IrradianceSamples
 from ..timing import StageTimer
 from ..transport import make_transport
 from .aovs import FirstHitAOVs
-from .camera import check_camera, first_hits, pixel_footprint, sensor_frame
-from .irradiance import indirect_irradiance, keeps_irradiance, object_samples, sample_count
+from .camera import check_camera, first_hits, sensor_frame
+from .irradiance import indirect_irradiance, keeps_irradiance, object_samples
 from .objects import find_translucent_objects
 from .params import RenderParams, aov_channels, parse_aovs, plugin_parameters
+from .plan import check_film, plan_samples, transport_params
 from .presets import register_medium
 from .screen import ScreenExitance
 from .shading import Shader
@@ -43,34 +42,6 @@ from .shading import Shader
 mi = load_mitsuba()
 #: The variant this module's classes were built in (a Mitsuba class belongs to one variant).
 VARIANT = mi.variant()
-
-
-class VisibilityWarning(UserWarning):
-    """A translucent object is not seen by the camera and is skipped."""
-
-
-class SampleNoiseWarning(UserWarning):
-    """An object gets fewer surface samples than ``profile_samples`` asks (memory or time): its exitance is noisier."""
-
-
-#: Bytes per path of the shading (the symbolic loop's outputs, the recorded hits' room of 44 bytes a lane, the film's
-#: samples): the peak resident memory grew by 58 and 89 bytes a path over the prepared state's at 800² 16 and 64 spp
-#: on the demo; with a margin.
-BYTES_PER_PATH = 120
-#: More bytes per path and AOV channel (:mod:`.aovs`): the peak grew by 25, 59 and 130 bytes a path over the prepared
-#: state's with none, 6 (object, mask, depth, normal) and all 12 channels at 512² 16 spp on the demo; with a margin.
-BYTES_PER_AOV_CHANNEL = 12
-#: Bytes per surface sample held while the transport is built (about 325 measured; irradiance runs in chunks).
-BYTES_PER_SAMPLE = 400
-#: Irradiance rays traced per second on the project's 2-core machine (bunny under a constant environment).
-RAYS_PER_SECOND = 5e6
-#: Bounces of an indirect path, for the time estimate (Russian roulette ends most of them within a few).
-INDIRECT_BOUNCES = 3
-#: A render whose irradiance alone would take longer than this is refused before it starts.
-MAX_IRRADIANCE_SECONDS = 600.0
-#: The share of the memory guard's limit that the ``profile_samples`` rule may fill with one object's samples (the
-#: rest is left to the transport's and the shading's own allocations).
-PROFILE_RULE_MEMORY = 0.5
 
 
 def _seed(seed):
@@ -169,46 +140,14 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             check_camera(sensor)
             frame = sensor_frame(sensor, p.unit_mm)
             seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
-        direct, cells, per_object, shown, shown_at, hidden = [], [], [], [], [], []
-        for k, (obj, visible) in enumerate(zip(objects, seen)):
-            depths = visible.depth
-            seen_from_inside = visible.from_behind == (obj.orientation > 0)  # against the outward normal
-            if obj.closed and len(depths) and seen_from_inside.mean() > 0.5:
-                raise ConvsssError(f"the camera is inside translucent shape {obj.name!r}: the diffusion model renders "
-                                   "objects seen from outside; move the camera out of it")
-            if len(depths) == 0:
-                warnings.warn(f"translucent shape {obj.name!r} is not visible from the camera: skipped (its light on "
-                              "other surfaces is not rendered)", VisibilityWarning, stacklevel=3)
-                hidden.append(obj.name)
-                continue
-            shown.append(obj)
-            shown_at.append(visible)
-            # The layer cell is a pixel's footprint at the object's bounding-box centre, or, for a centre behind the
-            # camera, at the median depth of its visible points.
-            depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
-            depth = depth if depth > 0 else float(np.median(depths))
-            cell_full = pixel_footprint(sensor, frame, depth, p.unit_mm)
-            cell = cell_full / p.transport_params().get("downsample", 1.0)
-            count_pixel = sample_count(obj.area_mm2, cell, p.sample_density)
-            profile_area = float(np.min(obj.profile.effective_area()))
-            count = wanted = sample_count(obj.area_mm2, cell, p.sample_density, profile_area, p.profile_samples)
-            if count > count_pixel:
-                count = max(count_pixel, min(count, self._sample_cap(scene)))
-                if count < wanted:
-                    warnings.warn(f"translucent shape {obj.name!r}: {wanted} surface samples would keep its sample "
-                                  f"noise near the goal ({p.profile_samples:g} per profile area of {profile_area:.3g} "
-                                  f"mm^2), more than the memory and time limits allow; {count} used: expect about "
-                                  f"{(wanted / count) ** 0.7:.1f}x that noise", SampleNoiseWarning, stacklevel=3)
-            check_memory(count * BYTES_PER_SAMPLE, f"{count} surface samples of {obj.name!r}",
-                         "lower sample_density, or use downsample 0.5 or 0.25")
-            self._check_irradiance_time(scene, count, obj.name)
-            direct.append(object_samples(scene, obj, count, p.irradiance_samples, p.unit_mm, _seed(seed), stream=k,
-                                         stage=stage, oblique=p.incidence == "oblique", orders=p.orders))
-            cells.append(cell_full)
-            per_object.append({**obj.summary(), "samples": count, "cell_size_mm": cell, "pixel_footprint_mm": cell_full,
-                               "view_depth_mm": depth, "samples_pixel_rule": count_pixel,
-                               "samples_profile_rule": wanted, "profile_area_mm2": profile_area,
-                               "samples_per_profile_area": count * profile_area / obj.area_mm2})
+            plan = plan_samples(scene, sensor, frame, objects, seen, p)
+        shown = [objects[q.index] for q in plan.objects]
+        shown_at = [seen[q.index] for q in plan.objects]
+        cells = [q.pixel_footprint_mm for q in plan.objects]
+        per_object = [{**obj.summary(), **q.summary(obj.area_mm2)} for obj, q in zip(shown, plan.objects)]
+        direct = [object_samples(scene, objects[q.index], q.samples, p.irradiance_samples, p.unit_mm, _seed(seed),
+                                 stream=q.index, stage=stage, oblique=p.incidence == "oblique", orders=p.orders)
+                  for q in plan.objects]
         indirect, deferred, tracer = self._indirect(scene, shown, direct, _seed(seed), stage)
         irradiance = [s.irradiance if e is None else s.irradiance + e for s, e in zip(direct, indirect)]
 
@@ -217,7 +156,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             samples = IrradianceSamples(s.position, s.area, irradiance[k], s.normal)
             with stage("transport"):
                 return make_transport(p.transport, samples, shown[k].profile, frame=frame,
-                                      **self._transport_params(cells[k]))
+                                      **transport_params(p, cells[k]))
 
         transports, from_translucent, passes = self._translucent_passes(tracer, direct, irradiance, deferred, build,
                                                                         stage)
@@ -231,8 +170,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             screen = ScreenExitance(sensor, shown, shown_at, transports, p.unit_mm)
         self._shader = Shader(scene, shown, transports, p, stop=self.should_stop, screen=screen)
         self._aovs = FirstHitAOVs(self._shader, parse_aovs(p.aovs))
-        self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object, "hidden": hidden,
-                      "samples": int(sum(o["samples"] for o in per_object)), "translucent_passes": passes,
+        self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object,
+                      "hidden": list(plan.hidden), "samples": int(sum(o["samples"] for o in per_object)),
+                      "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
         self.prepared = PreparedState(scene, sensor, _seed(seed), frame, shown, shown_at, cells, direct, irradiance,
                                       deferred, tracer, transports)
@@ -320,7 +260,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             raise ConvsssError("nothing is prepared to rebuild: call prepare() (or render_prepared after it) first")
         objects = list(state.objects if objects is None else objects)
         same = len(objects) == len(state.objects) and all(
-            new.shape is old.shape and new.instance_index == old.instance_index and new.eta == old.eta
+            new.shape is old.shape and new.instance_index == old.instance_index and same_eta(new.eta, old.eta)
             for new, old in zip(objects, state.objects))
         if not same:
             raise ConvsssError("retransport keeps the prepared objects and their eta (Fresnel's F_t at the samples "
@@ -345,7 +285,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             samples = IrradianceSamples(s.position, s.area, state.irradiance[k], s.normal)
             with stage("transport"):
                 return make_transport(p.transport, samples, objects[k].profile, frame=state.frame,
-                                      **self._transport_params(state.cells[k]))
+                                      **transport_params(p, state.cells[k]))
 
         transports, _, passes = self._translucent_passes(state.tracer, state.samples, state.irradiance,
                                                          state.deferred, build, stage)
@@ -360,56 +300,31 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                           screen_exitance={"usable": screen.usable, "queries": screen.queries})
         return self._shader
 
+    def checkpoint(self):
+        """What :meth:`prepare`, :meth:`retransport` and :meth:`render_prepared` change, for :meth:`restore` (an
+        edit applied whole or not at all)."""
+        state = self.prepared
+        kept = None if state is None else (state.objects, state.transports)
+        return self.params, self.prepared, kept, self._shader, self._aovs, self.stats
+
+    def restore(self, checkpoint):
+        """Back to a :meth:`checkpoint`."""
+        self.params, self.prepared, kept, self._shader, self._aovs, self.stats = checkpoint
+        if kept is not None:
+            self.prepared.objects, self.prepared.transports = kept
+
     def _check_same_samples(self, params):
         """A one-line error when ``params`` would place or light the samples differently from the prepared ones."""
         from .params import render_parameters
 
         kept = [q.name for q in render_parameters() if q.name not in ("transport", "profile", "aovs")]
         changed = [n for n in kept if getattr(params, n) != getattr(self.params, n)]
-        if params.transport_params().get("downsample", 1.0) != self.params.transport_params().get("downsample", 1.0):
-            changed.append("downsample")
+        cell = [q.transport_class().layer_cell(1.0, q.transport_params()) for q in (params, self.params)]
+        if cell[0] != cell[1]:
+            changed.append("the layer cell (downsample)")
         if changed:
             raise ConvsssError(f"retransport cannot change {', '.join(changed)}: the samples depend on it; call "
                                "prepare() with the new parameters")
-
-    def _transport_params(self, cell_full):
-        """The chosen transport's parameters, and the pixel footprint as its ``cell_size`` if it declares one."""
-        params = self.params.transport_params()
-        if self.params.transport_class().accepts("cell_size"):
-            params["cell_size"] = cell_full
-        return params
-
-    def _irradiance_rays(self, scene, count):
-        """Rays the irradiance of ``count`` points takes: ``count`` x ``irradiance_samples`` directions x (one ray per
-        area or environment emitter + one cosine-sampled ray), plus ``count`` x ``indirect_samples`` paths of
-        ``INDIRECT_BOUNCES`` bounces, each a ray and a shadow ray per emitter."""
-        p = self.params
-        sampled = sum(not mi.has_flag(e.flags(), mi.EmitterFlags.Delta) for e in scene.emitters())
-        direct = count * p.irradiance_samples * (sampled + 1) if sampled else 0
-        return direct + count * p.indirect_samples * INDIRECT_BOUNCES * (1 + len(scene.emitters()))
-
-    def _sample_cap(self, scene):
-        """The ceiling of the ``profile_samples`` rule for one object: :data:`PROFILE_RULE_MEMORY` of what the memory
-        guard lets through (``BYTES_PER_SAMPLE`` each), and what the irradiance time limit (``MAX_IRRADIANCE_SECONDS``)
-        does."""
-        available = available_memory()
-        by_memory = (PROFILE_RULE_MEMORY * USABLE_FRACTION * available / BYTES_PER_SAMPLE if available is not None
-                     else math.inf)
-        per_point = self._irradiance_rays(scene, 1)
-        by_time = MAX_IRRADIANCE_SECONDS * RAYS_PER_SECOND / per_point if per_point > 0 else math.inf
-        return int(min(by_memory, by_time, 2**31))
-
-    def _check_irradiance_time(self, scene, count, name):
-        """Refuse irradiance longer than ``MAX_IRRADIANCE_SECONDS`` (rays counted by :meth:`_irradiance_rays`)."""
-        p = self.params
-        sampled = sum(not mi.has_flag(e.flags(), mi.EmitterFlags.Delta) for e in scene.emitters())
-        rays = self._irradiance_rays(scene, count)
-        if rays / RAYS_PER_SECOND > MAX_IRRADIANCE_SECONDS:
-            raise ConvsssError(f"irradiance of {name!r} needs {rays:.3g} rays ({count} points x "
-                               f"{p.irradiance_samples} directions x {sampled + 1} + {count} x {p.indirect_samples:g} "
-                               f"indirect paths), about {rays / RAYS_PER_SECOND / 60:.0f} min at "
-                               f"{RAYS_PER_SECOND:.0e} rays/s: lower irradiance_samples (16-64 is plenty), "
-                               "indirect_samples or sample_density")
 
     # --- Mitsuba's interface ------------------------------------------------------------------------------------------
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
@@ -421,10 +336,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         size = film.crop_size()
         spp_used = spp if spp else sensor.sampler().sample_count()
         per_pass = min(spp_used, self.samples_per_pass) if self.samples_per_pass > 0 else spp_used
-        per_path = BYTES_PER_PATH + BYTES_PER_AOV_CHANNEL * len(self.aov_names())
-        check_memory(int(size[0]) * int(size[1]) * per_pass * per_path,
-                     f"{size[0]}x{size[1]} pixels at {per_pass} samples per pass",
-                     "set the integrator's samples_per_pass (e.g. 4) or render fewer spp")
+        check_film(size[0], size[1], per_pass, len(self.aov_names()))
         self.prepare(scene, sensor, seed)
         try:
             return self.render_prepared(spp=spp, seed=seed, develop=develop, evaluate=evaluate)

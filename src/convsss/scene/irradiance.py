@@ -42,6 +42,7 @@ import numba
 import numpy as np
 
 from ..backend import load_mitsuba
+from ..fresnel import same_eta
 from ..hashtable import capacity, empty, probe
 from ..profiles.incidence import GAIN_NODES, gain_table
 from .mis import power_heuristic
@@ -258,9 +259,11 @@ class Entry:
 def keeps_irradiance(old, new, incidence, orders="all"):
     """Whether samples lit for the material ``old`` keep their irradiance for ``new``: the same ``eta`` (``F_t``)
     and, where a gain depends on it (:class:`Entry`: ``incidence`` oblique, or a profile carrying ``orders``
-    multiple, whose indirect light counts its single scattering), the same reduced albedo to rounding."""
+    multiple, whose indirect light counts its single scattering), the same reduced albedo to the float32 rounding of
+    the scene's coefficients (a preset in float64 and the same preset read back from the scene are one medium)."""
     gained = incidence == "oblique" or orders != "all"
-    return old.eta == new.eta and (not gained or np.allclose(old.albedo_prime, new.albedo_prime, rtol=1e-9, atol=0.0))
+    same_albedo = np.allclose(old.albedo_prime, new.albedo_prime, rtol=1e-6, atol=0.0)
+    return same_eta(old.eta, new.eta) and (not gained or same_albedo)
 
 
 def _delta_irradiance(scene, emitters, it, entry):

@@ -201,13 +201,21 @@ def _surface(mi, shape, name):
     return 1.0, watertight
 
 
-def _check_span(obj):
+def _check_span(obj, unit_mm):
+    """Warn, in one line naming the span and ``unit_mm``, when the object's size in mean free paths suggests wrong
+    scene units (outside :data:`SPAN_LIMITS`) or an object too thin for diffusion (under one mean free path in every
+    channel: nearly transparent, which a diffusion profile cannot render)."""
     mfp = np.asarray(obj.spans()["mean_free_paths"])
     low, high = SPAN_LIMITS
+    where = (f"translucent shape {obj.name!r} spans {np.min(mfp):.3g}-{np.max(mfp):.3g} mean free paths (extent "
+             f"{obj.extent_mm:.4g} mm at unit_mm = {unit_mm:g} mm per scene unit)")
     if np.any(mfp < low) or np.any(mfp > high):
-        warnings.warn(f"translucent shape {obj.name!r} spans {np.round(mfp, 6).tolist()} mean free paths "
-                      f"(extent {obj.extent_mm:.4g} mm): outside [{low:g}, {high:g}] the scene units are probably "
-                      "wrong; set the integrator's unit_mm to the mm per scene unit", UnitsWarning, stacklevel=4)
+        warnings.warn(f"{where}: outside [{low:g}, {high:g}] the scene units are probably wrong; set the "
+                      "integrator's unit_mm to the mm per scene unit", UnitsWarning, stacklevel=4)
+    elif np.all(mfp < 1.0):
+        warnings.warn(f"{where}: under one mean free path the object is nearly transparent and the diffusion model "
+                      "does not hold (path trace it with `convsss reference`), or unit_mm is wrong", UnitsWarning,
+                      stacklevel=4)
 
 
 def hit_indices(mi, si):
@@ -385,7 +393,7 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
                                 area_mm2=world_area(shape, to_world) * unit_mm**2)
         if not obj.area_mm2 > 0:
             raise ConvsssError(f"translucent shape {name!r} has no surface area (all its faces are degenerate)")
-        _check_span(obj)
+        _check_span(obj, unit_mm)
         objects.append(obj)
     if not objects:
         raise ConvsssError("the scene has no translucent shape: give a shape an interior 'homogeneous' medium and a "

@@ -53,6 +53,22 @@ class Transport:
         """Whether this transport declares a parameter called ``name``."""
         return any(p.name == name for p in cls.parameters)
 
+    #: What to do when :meth:`planned_bytes` is refused (the end of the memory guard's one-line message).
+    memory_advice = "lower sample_density"
+
+    @classmethod
+    def layer_cell(cls, footprint, params):
+        """The cell (mm) the surface samples must resolve for a pixel ``footprint`` (mm) under ``params``: the
+        footprint itself unless the transport works at another resolution."""
+        return footprint
+
+    @classmethod
+    def planned_bytes(cls, bounds, profile, count, params):
+        """Bytes this transport will hold, beyond the samples, for ``count`` samples within ``bounds`` (2, 3) mm of
+        the camera's view frame, under ``params``: known before any sample is drawn, so that a render is refused
+        before any work (:mod:`convsss.scene.plan`). None by default."""
+        return 0
+
     @property
     def query_batch(self):
         """Query points per :meth:`exitance` call that keep a call short (a caller checks for Ctrl-C between calls)."""

@@ -18,13 +18,15 @@
 Cells are ``cell_size / downsample`` mm wide (``downsample`` 1, 1/2, 1/4: the paper's lower-resolution layers).
 """
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 import scipy.fft
 
 from ..errors import ConvsssError
 from ..memory import check_memory
-from ..parameters import Parameter
+from ..parameters import Parameter, check_parameters
 from ..samples import ViewFrame
 from .base import Transport, register_transport
 from .correction import apply_correction, cached_plane_response
@@ -156,6 +158,54 @@ def _needed_layers(view, z0, dz, n_layers):
     return need
 
 
+@dataclass(frozen=True)
+class LayerGrid:
+    """The layers' geometry: image-plane ``cell`` (mm), ``n_layers`` from depth ``z0`` every ``dz``, the grid's
+    corner ``x0``, ``y0``, its ``grid_shape`` (H, W), the kernel's ``reach`` in cells and the FFT's
+    ``padded_shape``."""
+
+    cell: float
+    n_layers: int
+    z0: float
+    dz: float
+    x0: float
+    y0: float
+    grid_shape: tuple
+    reach: tuple
+    padded_shape: tuple
+
+
+def layer_grid(lo, hi, layers, cell_size, resolution, downsample, profile, kernel_tail):
+    """The :class:`LayerGrid` over samples within ``lo``, ``hi`` (3,) of the view frame: cells of ``cell_size /
+    downsample`` (default: the image-plane extent / ``resolution``), ``layers`` layers over the depth range (one for
+    a flat object), kernels reaching the radius that holds all but ``kernel_tail`` of the profile's energy."""
+    extent = float(max(hi[0] - lo[0], hi[1] - lo[1]))
+    if cell_size is None:
+        cell_size = max(extent, 1e-9) / (resolution or DEFAULT_RESOLUTION)
+    cell = float(cell_size) / downsample
+    depth_range = float(hi[2] - lo[2])
+    flat = depth_range <= 1e-9 * max(extent, depth_range, 1e-300)
+    n_layers = 1 if (layers == 1 or flat) else int(layers)
+    width = int(np.ceil((hi[0] - lo[0]) / cell)) + 3
+    height = int(np.ceil((hi[1] - lo[1]) / cell)) + 3
+    reach = int(np.ceil(float(np.max(profile.radius_energy(kernel_tail))) / cell))
+    reach = (min(reach, height - 1), min(reach, width - 1))
+    padded = tuple(scipy.fft.next_fast_len(n + q, real=True) for n, q in zip((height, width), reach))
+    return LayerGrid(cell, n_layers, float(lo[2]), depth_range / (n_layers - 1) if n_layers > 1 else 0.0,
+                     float(lo[0]) - cell, float(lo[1]) - cell, (height, width), reach, padded)
+
+
+def grid_bytes(n_layers, grid_shape, padded_shape, correction):
+    """Bytes held at the peak: the splat grid, source spectra, kernel spectra, one batch of output spectra and its
+    inverse, the exitance layers, and the plane correction's irradiance grids (2 sides x 4 channels)."""
+    py, px = padded_shape
+    spatial = n_layers * 3 * py * px * 4
+    spectrum = n_layers * 3 * py * (px // 2 + 1)
+    layers = n_layers * 3 * grid_shape[0] * grid_shape[1] * 4
+    return int(spatial + spectrum * 8 + spectrum * 4 + spectrum * 8 + spatial + layers
+               + (8 * layers // 3 if correction == "plane" else 0))
+
+
 class ConvolutionTransport(Transport):
     """Layered FFT convolution transport; see the module docstring.
 
@@ -242,34 +292,28 @@ class ConvolutionTransport(Transport):
 
     def _setup_grid(self, layers, cell_size, resolution, profile, kernel_tail):
         lo, hi = self._view.min(axis=0), self._view.max(axis=0)
-        extent = float(max(hi[0] - lo[0], hi[1] - lo[1]))
-        if cell_size is None:
-            cell_size = max(extent, 1e-9) / (resolution or DEFAULT_RESOLUTION)
-        self.cell = float(cell_size) / self.downsample
-        depth_range = float(hi[2] - lo[2])
-        flat = depth_range <= 1e-9 * max(extent, depth_range, 1e-300)
-        self.n_layers = 1 if (layers == 1 or flat) else int(layers)
-        self.z0 = float(lo[2])
-        self.dz = depth_range / (self.n_layers - 1) if self.n_layers > 1 else 0.0
-        self.x0, self.y0 = float(lo[0]) - self.cell, float(lo[1]) - self.cell
-        width = int(np.ceil((hi[0] - lo[0]) / self.cell)) + 3
-        height = int(np.ceil((hi[1] - lo[1]) / self.cell)) + 3
-        self.grid_shape = (height, width)
-        reach = int(np.ceil(float(np.max(profile.radius_energy(kernel_tail))) / self.cell))
-        self.reach = (min(reach, height - 1), min(reach, width - 1))
-        self.padded_shape = (scipy.fft.next_fast_len(height + self.reach[0], real=True),
-                             scipy.fft.next_fast_len(width + self.reach[1], real=True))
+        grid = layer_grid(lo, hi, layers, cell_size, resolution, self.downsample, profile, kernel_tail)
+        for name, value in vars(grid).items():
+            setattr(self, name, value)
 
     def _memory_estimate(self):
-        """Bytes held at the peak: the splat grid, source spectra, kernel spectra, one batch of output spectra and
-        its inverse, the exitance layers, and the plane correction's irradiance grids (2 sides x 4 channels)."""
-        py, px = self.padded_shape
-        n = self.n_layers
-        spatial = n * 3 * py * px * 4
-        spectrum = n * 3 * py * (px // 2 + 1)
-        layers = n * 3 * self.grid_shape[0] * self.grid_shape[1] * 4
-        return int(spatial + spectrum * 8 + spectrum * 4 + spectrum * 8 + spatial + layers
-                   + (8 * layers // 3 if self.correction == "plane" else 0))
+        return grid_bytes(self.n_layers, self.grid_shape, self.padded_shape, self.correction)
+
+    memory_advice = "use fewer layers, a lower resolution or downsample"
+
+    @classmethod
+    def layer_cell(cls, footprint, params):
+        """The pixel footprint divided by ``downsample`` (paper §5: layers at a fraction of the image's
+        resolution)."""
+        return footprint / params.get("downsample", 1.0)
+
+    @classmethod
+    def planned_bytes(cls, bounds, profile, count, params):
+        """The layers' grids and spectra (:func:`layer_grid`, :func:`grid_bytes`) over ``bounds``."""
+        p = check_parameters(cls.parameters, params, f"the {cls.name} transport")
+        grid = layer_grid(bounds[0], bounds[1], p["layers"], p["cell_size"], p["resolution"], p["downsample"],
+                          profile, p["kernel_tail"])
+        return grid_bytes(grid.n_layers, grid.grid_shape, grid.padded_shape, p["correction"])
 
     def compute_layers(self, layers):
         """Exitance images of ``layers`` (those not computed yet): mixing per frequency, then inverse FFTs.

@@ -189,6 +189,29 @@ def far_spectrum(radial, r_c, a, b, h, fft_shape, reach):
     return folded.astype(np.float32)[:, index[0][:, None], index[1][None, :], :]
 
 
+def far_mesh(sc, reach, lo, hi):
+    """The far field's mesh for samples within ``lo``, ``hi`` (3,) of the view frame, :class:`Scales` ``sc`` and the
+    kernel's ``reach`` per channel: ``(origin, shape, fft_shape)``. The mesh reaches ``r_c`` past the samples; its
+    FFT is zero-padded by the reach (nothing wraps around)."""
+    h = sc.mesh
+    origin = np.asarray(lo, dtype=np.float64) - sc.split
+    shape = np.ceil((np.asarray(hi, dtype=np.float64) + sc.split - origin) / h).astype(np.int64) + 2
+    pad = np.minimum(shape - 1, math.ceil(float(np.max(reach)) / h))
+    return origin, shape, tuple(even_fast_len(int(n + q)) for n, q in zip(shape, pad))
+
+
+def far_bytes(fft_shape):
+    """The spectra of the grid (complex) and of the kernel (real), 3 channels, 4 bytes a number: at most 36 bytes per
+    cell of the padded mesh (the grid and the field hold only the unpadded cells)."""
+    return 36 * int(np.prod(np.asarray(fft_shape, dtype=np.float64)))
+
+
+def cell_list_bytes(lo, hi, size):
+    """The start offsets of a :class:`CellList` of cubes of side ``size`` over ``lo``, ``hi``: one int64 a cube."""
+    dims = np.maximum(np.ceil((np.asarray(hi) - np.asarray(lo)) / size), 1)
+    return 8 * (float(np.prod(dims)) + 1)
+
+
 def padded_convolution(grid, kernel_hat, fft_shape):
     """The cyclic convolution on ``fft_shape`` of ``grid`` (C, nx, ny, nz), zero-padded to it, with a kernel of
     spectrum ``kernel_hat`` (``rfftn`` over the last three axes), read back on the grid's own cells.
@@ -659,6 +682,16 @@ class MultiscaleTransport(Transport):
                   "available).", low=0.0, low_open=True, exposed=False),
     )
 
+    memory_advice = "raise the transport's accuracy (a coarser far-field mesh), or use the hierarchical transport"
+
+    @classmethod
+    def planned_bytes(cls, bounds, profile, count, params):
+        """The far-field mesh's spectra and the two cell lists' offsets (:func:`far_mesh`, :class:`CellList`)."""
+        sc = scales(profile, params.get("accuracy", 0.01))
+        lo, hi = bounds
+        _, _, fft_shape = far_mesh(sc, far_reach(profile), lo, hi)
+        return int(far_bytes(fft_shape) + cell_list_bytes(lo, hi, sc.core) + cell_list_bytes(lo, hi, 0.5 * sc.split))
+
     def __init__(self, samples, profile, frame=None, **params):
         super().__init__(samples, profile, frame, **params)
         with self.timings("kernels"):
@@ -707,14 +740,9 @@ class MultiscaleTransport(Transport):
         ones read its border); float32 throughout (the error aimed at is far above its round-off).
         """
         h = self.scales.mesh
-        lo = lo - self.scales.split
-        shape = np.ceil((hi + self.scales.split - lo) / h).astype(np.int64) + 2
         reach = far_reach(self.profile)
-        pad = np.minimum(shape - 1, math.ceil(float(reach.max()) / h))
-        fft_shape = tuple(even_fast_len(n + q) for n, q in zip(shape, pad))
-        # The spectra of the grid (complex) and of the kernel (real), 3 channels, 4 bytes a number: at most 36 bytes
-        # per cell of the padded mesh (the grid and the field hold only the unpadded cells).
-        check_memory(36 * int(np.prod(fft_shape)), "the multiscale far-field mesh and its spectra",
+        lo, shape, fft_shape = far_mesh(self.scales, reach, lo, hi)
+        check_memory(far_bytes(fft_shape), "the multiscale far-field mesh and its spectra",
                      "raise the transport's accuracy (a coarser mesh)", self.params["memory_limit"])
         self._mesh_origin, self.fft_shape = lo, fft_shape
         with self.timings("far_kernel"):
