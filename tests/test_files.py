@@ -107,3 +107,31 @@ def test_check_outputs_refuses_a_read_only_folder(tmp_path):
     folder.mkdir(mode=0o555)
     with pytest.raises(ConvsssError, match="cannot write into"):
         check_outputs([folder / "img.exr"])
+
+
+def test_a_failed_mitsuba_write_is_one_line_and_leaves_nothing(tmp_path):
+    """Mitsuba's streams report a full disk as a RuntimeError (issue 30, defect 10): one line, no file left."""
+    def full(tmp):
+        raise RuntimeError(f'[FileStream] "{tmp}": I/O error while attempting to write 98304 bytes: No space left on '
+                           'device')  # what Mitsuba 3.9 raised on a full tmpfs
+
+    with pytest.raises(ConvsssError, match=r"cannot write .*a\.exr': No space left on device$"):
+        write_files({tmp_path / "a.exr": full})
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_temporaries_of_a_killed_run_are_removed_by_the_next(tmp_path):
+    """A run killed while writing (SIGKILL: no cleanup) leaves ``.STEM.PID.XXXXXXXX.SUFFIX``; the next write of the
+    same file removes those of processes that no longer run, and keeps a running one's and other files."""
+    import subprocess
+
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    stale = tmp_path / f".img.{dead.pid}.abcd_123.exr"
+    live = tmp_path / f".img.{os.getpid()}.zzzzzzzz.exr"
+    other = tmp_path / f".other.{dead.pid}.abcd_123.exr"
+    for path in (stale, live, other):
+        path.write_bytes(b"partial")
+    write_text(tmp_path / "img.exr", "whole")
+    assert not stale.exists() and live.exists() and other.exists()
+    assert (tmp_path / "img.exr").read_text() == "whole"

@@ -9,6 +9,7 @@ output that is one of the command's inputs, a folder, or in a folder that cannot
 
 import math
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -116,7 +117,8 @@ def write_files(writers):
     try:
         for path, write in zip(paths, writers.values()):
             path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+            remove_stale_temporaries(path)
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.{os.getpid()}.", suffix=path.suffix, dir=path.parent)
             os.close(fd)
             temps.append(tmp)
             write(tmp)
@@ -128,8 +130,35 @@ def write_files(writers):
             Path(tmp).unlink(missing_ok=True)
         if isinstance(error, OSError):
             raise ConvsssError(f"cannot write {str(path)!r}: {error.strerror or error}") from None
+        if isinstance(error, RuntimeError) and str(error).startswith("[FileStream]"):  # Mitsuba's I/O errors
+            raise ConvsssError(f"cannot write {str(path)!r}: {str(error).rsplit(': ', 1)[-1].strip()}") from None
         raise
     return paths
+
+
+def remove_stale_temporaries(path):
+    """Remove the temporary files of :func:`write_files` for ``path`` (``.STEM.PID.XXXXXXXX.SUFFIX`` beside it) left by
+    a process that no longer runs (killed before it could clean up); those of a running process are kept."""
+    pattern = re.compile(rf"\.{re.escape(path.stem)}\.(\d+)\.[A-Za-z0-9_]{{8}}{re.escape(path.suffix)}")
+    try:
+        entries = list(os.scandir(path.parent))
+    except OSError:
+        return
+    for entry in entries:
+        match = pattern.fullmatch(entry.name)
+        if match is not None and not _running(int(match.group(1))):
+            Path(entry.path).unlink(missing_ok=True)
+
+
+def _running(pid):
+    """Whether process ``pid`` exists (one of another user counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
 
 
 def atomic_write(path, write):

@@ -429,9 +429,9 @@ def test_the_largest_seed_renders_a_reference(scene_file, tmp_path):
     assert json.loads((tmp_path / "ref.json").read_text())["seed"] == 2**32 - 1
 
 
-def _interrupt(args, tmp_path, shown, wait=0.0):
-    """Run ``convsss ARGS``, send SIGINT once stderr shows ``shown`` (and ``wait`` seconds more): exit code 130,
-    ``interrupted``, no traceback and no file written."""
+def _interrupt(args, tmp_path, shown, wait=0.0, sig=signal.SIGINT):
+    """Run ``convsss ARGS``, send SIGINT (or ``sig``: SIGTERM) once stderr shows ``shown`` (and ``wait`` seconds
+    more): exit code 130 (143), ``interrupted`` (``terminated``), no traceback and no file written."""
     proc = subprocess.Popen([sys.executable, "-m", "convsss", *args], stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONPATH": _src_path()})
     started = ""
@@ -440,14 +440,15 @@ def _interrupt(args, tmp_path, shown, wait=0.0):
         assert char, f"the command ended before {shown!r}: {started}"
         started += char
     time.sleep(wait)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sig)
     try:
         code = proc.wait(timeout=60)
     finally:
         proc.kill()
     stderr = started + proc.stderr.read()
-    assert code == 130, stderr
-    assert "Traceback" not in stderr and stderr.rstrip().endswith("interrupted")
+    expected = (130, "interrupted") if sig == signal.SIGINT else (143, "terminated")
+    assert code == expected[0], stderr
+    assert "Traceback" not in stderr and stderr.rstrip().endswith(expected[1])
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]
 
 
@@ -464,6 +465,15 @@ def test_ctrl_c_ends_render_in_one_line_without_outputs(tmp_path, stage):
     _interrupt(["render", "--mesh", "bunny", "--material", "wholemilk", "--size-mm", "40", "--width", "96",
                 "--height", "96", "--spp", "256", "-o", str(tmp_path / "out" / "img"), "--transport", "exact",
                 "--profile-samples", "0"], tmp_path, stage)
+
+
+@pytest.mark.slow
+def test_sigterm_ends_render_as_ctrl_c_does(tmp_path):
+    """SIGTERM once the shading starts (issue 30, defect 7: it had left hidden temporaries and exit 143 without a
+    word): one line, exit 143, no file."""
+    _interrupt(["render", "--mesh", "bunny", "--material", "wholemilk", "--size-mm", "40", "--width", "96",
+                "--height", "96", "--spp", "256", "-o", str(tmp_path / "out" / "img"), "--transport", "exact",
+                "--profile-samples", "0"], tmp_path, "shading", sig=signal.SIGTERM)
 
 
 # ---- Materials by colour and distance, presets named in scene files ------------------------------------------

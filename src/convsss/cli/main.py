@@ -1,9 +1,9 @@
 """The ``convsss`` command group and its error handling.
 
 Every command turns bad input (a :class:`~convsss.errors.ConvsssError` or a bad option value) into
-``error: <one line>`` on stderr and exit code 2, and Ctrl-C into ``interrupted`` and exit code 130, without a
-traceback; outputs are written all together or not at all (:func:`convsss.files.write_files`), so an interrupted
-command leaves none half-written.
+``error: <one line>`` on stderr and exit code 2, Ctrl-C into ``interrupted`` and exit code 130 and SIGTERM into
+``terminated`` and 143, without a traceback; outputs are written all together or not at all
+(:func:`convsss.files.write_files`), so an interrupted command leaves none half-written.
 """
 
 import warnings
@@ -12,9 +12,12 @@ import click
 
 from .. import __version__
 from ..errors import ConvsssError
+from ..signals import Terminated, terminate_as_interrupt
 
 #: Exit code of a command stopped by Ctrl-C (128 + SIGINT, as shells report it).
 INTERRUPTED = 130
+#: Exit code of a command stopped by SIGTERM (128 + SIGTERM); it cleans up as on Ctrl-C.
+TERMINATED = 143
 
 
 class _ConvsssGroup(click.Group):
@@ -30,6 +33,9 @@ class _ConvsssGroup(click.Group):
             hint = f" (see '{error.ctx.command_path} --help')" if error.ctx is not None else ""
             click.echo(f"error: {' '.join(error.format_message().split())}{hint}", err=True)
             ctx.exit(2)
+        except Terminated:
+            click.echo("terminated", err=True)
+            ctx.exit(TERMINATED)
         except KeyboardInterrupt:
             click.echo("interrupted", err=True)
             ctx.exit(INTERRUPTED)
@@ -47,3 +53,4 @@ def cli():
     Run `convsss COMMAND --help` for the options of each command.
     """
     warnings.showwarning = _show_warning
+    terminate_as_interrupt()

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..errors import ConvsssError
 from ..fresnel import check_eta, diffuse_transmittance, fresnel_reflectance
+from ..signals import mitsuba_render
 
 #: Fresnel table resolution in cos (the walk looks ``F_r`` up instead of carrying a second Fresnel formula).
 FRESNEL_TABLE = 4097
@@ -260,5 +261,7 @@ def volpath_slab_albedo(material, occluder_mm=0.0, spp=1 << 16, seed=0):
         scene["occluder"] = {"type": "disk", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb",
                                                                                          "value": [0.0] * 3}},
                              "to_world": T().translate([0.0, 0.0, 2.0 * lift]).scale(float(occluder_mm))}
-    image = mi.render(mi.load_dict(scene), seed=int(seed), spp=int(spp))
+    loaded = mi.load_dict(scene)
+    with mitsuba_render(loaded.integrator()):
+        image = mi.render(loaded, seed=int(seed), spp=int(spp))
     return np.array(image, dtype=np.float64).reshape(-1)[:3]

@@ -27,6 +27,7 @@ from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
 from ..fresnel import same_eta
 from ..samples import IrradianceSamples
+from ..signals import mitsuba_render
 from ..timing import StageTimer
 from ..transport import make_transport
 from .aovs import FirstHitAOVs
@@ -363,7 +364,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             # Mitsuba's film kernel scatter-adds each sample to every pixel its reconstruction filter covers: it runs
             # on one thread, in lane order, so the image is bit-identical whatever the thread count; the shading
             # (sample) runs on all threads.
-            with timer("shading"), ordered_kernels() as self._threads:
+            with timer("shading"), mitsuba_render(), ordered_kernels() as self._threads:
                 image = mi.SamplingIntegrator.render(self, scene, sensor, seed, spp, develop, evaluate)
                 dr.eval(image)
         finally:

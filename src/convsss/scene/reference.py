@@ -18,6 +18,7 @@ import numpy as np
 
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
+from ..signals import mitsuba_render
 
 #: Russian roulette starts at this depth, i.e. never in practice.
 NO_RUSSIAN_ROULETTE = 1 << 30
@@ -94,8 +95,9 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
     total, done, warned = None, 0, False
     for k in range(n_passes):
         this = min(pass_spp, spp - done)
-        image = np.array(mi.render(scene, integrator=integrator, spp=this, seed=(seed * 1_000_003 + k) % 2**32),
-                         dtype=np.float64)[..., :3]
+        with mitsuba_render(integrator):  # Ctrl-C: no partial pass is averaged in
+            image = np.array(mi.render(scene, integrator=integrator, spp=this, seed=(seed * 1_000_003 + k) % 2**32),
+                             dtype=np.float64)[..., :3]
         if not warned and objects.any() and not np.any(image[objects] > 0):
             warned = True
             warnings.warn(f"volpathmis pass {k + 1} of {n_passes} is black over all {int(objects.sum())} pixels "

@@ -1,0 +1,67 @@
+"""Ctrl-C and SIGTERM (convsss.signals): Ctrl-C still raises KeyboardInterrupt after a render in the process (Mitsuba's
+handler had stayed installed, issue 30 defect 7), and SIGTERM stops a command as Ctrl-C does."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+
+AFTER_RENDER = textwrap.dedent("""
+    import os, signal, threading, time
+    import convsss
+    from convsss.editor import EditSession
+    from convsss.scene.integrator import register
+    from convsss.scene.quick import demo_mesh, quick_scene
+
+    mi = register()
+    EditSession(mi.load_dict(quick_scene(demo_mesh(), convsss.material("wholemilk"), 20.0, 16, 16, 1)))
+    threading.Timer(0.2, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+    try:
+        time.sleep(30)
+        print("not interrupted")
+    except KeyboardInterrupt:
+        print("interrupted")
+""")
+
+
+def _python(code, timeout=120):
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, "PYTHONPATH": SRC})
+
+
+@pytest.mark.slow
+def test_ctrl_c_raises_keyboard_interrupt_after_a_render():
+    result = _python(AFTER_RENDER)
+    assert result.stdout.strip() == "interrupted", result.stdout + result.stderr
+
+
+def test_sigterm_raises_terminated_a_keyboard_interrupt():
+    code = textwrap.dedent("""
+        import os, signal
+        from convsss.signals import Terminated, terminate_as_interrupt
+        terminate_as_interrupt()
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            print("not terminated")
+        except Terminated as error:
+            print("terminated", isinstance(error, KeyboardInterrupt))
+    """)
+    assert _python(code).stdout.strip() == "terminated True"
+
+
+def test_an_interrupt_that_drjit_wrapped_comes_out_as_itself():
+    from convsss.signals import mitsuba_render
+
+    with pytest.raises(KeyboardInterrupt):
+        with mitsuba_render():
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt as error:
+                raise RuntimeError("drjit.custom(...): error while performing a custom operation") from error
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
