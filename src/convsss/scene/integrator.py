@@ -18,6 +18,8 @@
 Per-stage seconds and everything a user needs to judge the run are in :attr:`ConvsssIntegrator.stats`.
 """
 
+import functools
+import threading
 from dataclasses import dataclass, field
 
 import drjit as dr
@@ -43,6 +45,22 @@ from .shading import Shader
 mi = load_mitsuba()
 #: The variant this module's classes were built in (a Mitsuba class belongs to one variant).
 VARIANT = mi.variant()
+
+
+#: One render stage at a time in a process: an integrator's prepared state and the thread count the shading sets in
+#: Dr.Jit are shared, so a second thread waits for the first (two threads rendering one scene at once failed).
+RENDER_LOCK = threading.RLock()
+
+
+def _one_at_a_time(method):
+    """``method`` under :data:`RENDER_LOCK` (re-entrant: Mitsuba's loop calls back into the integrator)."""
+
+    @functools.wraps(method)
+    def serialized(*args, **kwargs):
+        with RENDER_LOCK:
+            return method(*args, **kwargs)
+
+    return serialized
 
 
 def _seed(seed):
@@ -127,6 +145,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         if self.progress is not None:
             self.progress(name)
 
+    @_one_at_a_time
     def prepare(self, scene, sensor, seed=0):
         """Stages 1–3 for ``sensor``: translucent objects, their irradiance samples and transports."""
         p = self.params
@@ -234,6 +253,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                               for k, (t, records) in enumerate(zip(transports, deferred))]
         return transports, light, passes
 
+    @_one_at_a_time
     def retransport(self, objects=None, params=None):
         """Stage 3 again on the state of the last :meth:`prepare`: the transports, the light between translucent objects
         and the screen's exitance, for new ``objects`` and/or new ``params``; returns the new :class:`Shader`.
@@ -328,6 +348,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                                "prepare() with the new parameters")
 
     # --- Mitsuba's interface ------------------------------------------------------------------------------------------
+    @_one_at_a_time
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
         if self._nested:  # Mitsuba's own loop, called from below: let it run
             return mi.SamplingIntegrator.render(self, scene, sensor, seed, spp, develop, evaluate)
@@ -345,6 +366,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self._shader = None
             self.prepared = None
 
+    @_one_at_a_time
     def render_prepared(self, spp=0, seed=None, develop=True, evaluate=True):
         """Stage 4 alone: shade the camera rays of the last :meth:`prepare` (or :meth:`retransport`) through
         Mitsuba's render loop, keeping the prepared state, so that an edit can rebuild what it changed and shade

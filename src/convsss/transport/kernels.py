@@ -21,6 +21,8 @@ import scipy.fft
 
 from .radial import profile_lookup
 
+#: The bytes a kernel cache may hold (the demo's spectra take tens of MiB).
+KERNEL_CACHE_BYTES = 512 * 2**20
 _SUBCELL_REACH = 32.0  # sub-cells per cell at distance h, falling as 1/rho
 _MAX_SUBCELLS = 256
 
@@ -105,10 +107,12 @@ def wrap_kernel(quadrant, padded_shape):
 
 
 class KernelCache:
-    """Kernel spectra keyed by (profile key, h, dz, distances, reach, padded shape); keeps the newest ``size``."""
+    """Kernel spectra keyed by (profile key, h, dz, distances, reach, padded shape); keeps the newest ``size`` that
+    hold at most ``max_bytes`` together (an entry larger than that is not kept: a dense medium's far-field spectra
+    can take gigabytes, which a long-lived process would otherwise hold on to)."""
 
-    def __init__(self, size=2):
-        self.size = size
+    def __init__(self, size=2, max_bytes=KERNEL_CACHE_BYTES):
+        self.size, self.max_bytes = size, max_bytes
         self._entries = OrderedDict()
 
     def get(self, key):
@@ -118,13 +122,29 @@ class KernelCache:
         return None
 
     def put(self, key, value):
+        self._entries.pop(key, None)
+        if _nbytes(value) > self.max_bytes:
+            return
         self._entries[key] = value
-        self._entries.move_to_end(key)
-        while len(self._entries) > self.size:
+        while len(self._entries) > self.size or self.nbytes > self.max_bytes:
             self._entries.popitem(last=False)
+
+    @property
+    def nbytes(self):
+        """The bytes of the arrays held."""
+        return sum(_nbytes(v) for v in self._entries.values())
 
     def clear(self):
         self._entries.clear()
+
+
+def _nbytes(value):
+    """Bytes of the numpy arrays in ``value`` (an array, or tuples and lists of them)."""
+    if isinstance(value, np.ndarray):
+        return value.nbytes
+    if isinstance(value, (tuple, list)):
+        return sum(_nbytes(v) for v in value)
+    return 0
 
 
 CACHE = KernelCache()
