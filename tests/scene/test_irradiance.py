@@ -93,7 +93,7 @@ def _uniform_incident(radiance):
     def incident(sampler, rays, weight, tags):
         calls.append(np.array(tags))
         assert dr.width(rays.o) == len(tags) == len(weight)
-        return weight * np.asarray(radiance)[None, :]
+        return weight * np.asarray(radiance)[None, :], []
 
     return incident, calls
 
@@ -104,7 +104,7 @@ def test_indirect_irradiance_of_uniform_radiance_is_pi_times_it(mi, irr, paths):
     scene = mi.load_dict({"type": "scene", "s": {"type": "sphere"}})
     p, n, size, _ = _points(irr, scene, 400)
     incident, calls = _uniform_incident([1.0, 0.5, 0.25])
-    e = irr.indirect_irradiance(incident, p, n, np.full(size, 4 * np.pi / size), 1.0, paths, seed=2)
+    e, _ = irr.indirect_irradiance(incident, p, n, np.full(size, 4 * np.pi / size), 1.0, paths, seed=2)
     np.testing.assert_allclose(e, np.pi * np.array([[1.0, 0.5, 0.25]] * size), rtol=1e-5)
     np.testing.assert_array_equal(np.sort(np.concatenate(calls)), np.repeat(np.arange(size), paths))
 
@@ -116,7 +116,7 @@ def test_indirect_irradiance_through_a_fresnel_boundary(mi, irr):
     scene = mi.load_dict({"type": "scene", "s": {"type": "sphere"}})
     p, n, size, _ = _points(irr, scene, 4000)
     incident, _ = _uniform_incident([1.0, 1.0, 1.0])
-    e = irr.indirect_irradiance(incident, p, n, np.full(size, 4 * np.pi / size), 1.4, 4, seed=0)[:, 0]
+    e = irr.indirect_irradiance(incident, p, n, np.full(size, 4 * np.pi / size), 1.4, 4, seed=0)[0][:, 0]
     mu = (np.arange(100000) + 0.5) / 100000
     expected = np.pi * (1 - 2 * np.mean(fresnel_reflectance(1.4, mu) * mu))
     # Per point: the mean of 4 values F_t pi with F_t in [F_t(0), 1]; the mean of 4096 points is within 0.5 %.
@@ -128,7 +128,7 @@ def test_fewer_paths_than_points_trace_a_fraction_with_inverse_weights(mi, irr):
     scene = mi.load_dict({"type": "scene", "s": {"type": "sphere"}})
     p, n, size, _ = _points(irr, scene, 4000)
     incident, calls = _uniform_incident([1.0, 1.0, 1.0])
-    e = irr.indirect_irradiance(incident, p, n, np.full(size, 4 * np.pi / size), 1.0, 0.25, seed=5)[:, 0]
+    e = irr.indirect_irradiance(incident, p, n, np.full(size, 4 * np.pi / size), 1.0, 0.25, seed=5)[0][:, 0]
     traced = np.concatenate(calls)
     assert len(np.unique(traced)) == len(traced)
     assert abs(len(traced) - size / 4) < 4 * np.sqrt(size * 0.25 * 0.75)
@@ -222,7 +222,7 @@ def test_oblique_incidence_weights_indirect_paths(mi, irr):
     p, n, size, _ = _points(irr, scene, 4096)
     albedo = np.array([0.9, 0.5, 0.1])
     incident, _ = _uniform_incident([1.0, 1.0, 1.0])
-    e = irr.indirect_irradiance(incident, p, n, np.full(size, 4 * np.pi / size), 1.0, 4, seed=0, albedo=albedo)
+    e, _ = irr.indirect_irradiance(incident, p, n, np.full(size, 4 * np.pi / size), 1.0, 4, seed=0, albedo=albedo)
     x, w = np.polynomial.legendre.leggauss(64)
     mu, w = 0.5 * (x + 1.0), 0.5 * w
     mean_gain = 2.0 * np.sum((w * mu)[:, None] * gain(albedo, 1.0, mu), axis=0)

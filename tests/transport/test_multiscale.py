@@ -1,4 +1,4 @@
-"""The multi-scale transport: the split of the profile (Eq. S1, S2), the clusters, convergence to the exact sum on
+"""The multi-scale transport: the split of the profile (Eq. M1, M2), the clusters, convergence to the exact sum on
 spheres and on the bunny at two sizes ten times apart, queries off the surface, memory refused before allocating."""
 
 import numpy as np

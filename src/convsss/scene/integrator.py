@@ -202,7 +202,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         """Indirect irradiance (paper Eq. 2 after at least one bounce) at every object's samples, path traced with the
         shader's path tracer before any transport exists: ``(indirect, deferred, tracer)``, ``indirect[k]`` (N, 3)
         numpy or None (none asked for), ``deferred[k]`` the hits on translucent objects, to be looked up once their
-        transports exist (:meth:`Shader.resolve`)."""
+        transports exist (:meth:`Shader.resolve`), as :func:`indirect_irradiance` returned them."""
         p = self.params
         none = [None] * len(objects), [[] for _ in objects], None
         # Indirect light needs a path of at least 3 segments (camera, the object, a bounce, an emitter).
@@ -214,12 +214,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             for k, (obj, s) in enumerate(zip(objects, samples)):
                 position = mi.Point3f(*np.ascontiguousarray((s.position / p.unit_mm).T, dtype=np.float32))
                 normal = mi.Vector3f(*np.ascontiguousarray(s.normal.T, dtype=np.float32))
-                indirect.append(indirect_irradiance(tracer.incident, position, normal, s.area / p.unit_mm**2, obj.eta,
-                                                    p.indirect_samples, seed + 104729 * (k + 1),
-                                                    stop=self.should_stop, albedo=obj.material.albedo_prime,
-                                                    orders=p.orders, oblique=p.incidence == "oblique"))
-                deferred.append(tracer.deferred)
-                tracer.deferred = []
+                e, hits = indirect_irradiance(tracer.incident, position, normal, s.area / p.unit_mm**2, obj.eta,
+                                              p.indirect_samples, seed + 104729 * (k + 1), stop=self.should_stop,
+                                              albedo=obj.material.albedo_prime, orders=p.orders,
+                                              oblique=p.incidence == "oblique")
+                indirect.append(e)
+                deferred.append(hits)
         return indirect, deferred, tracer
 
     def _translucent_passes(self, tracer, samples, irradiance, deferred, build, stage):

@@ -407,7 +407,8 @@ def _voxel_ranks(points, owners, spacing):
 
 def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None, albedo=None, orders="all",
                         oblique=True):
-    """``E_ind`` (N, 3) numpy: paper Eq. 2 over the light that reaches the points after at least one bounce.
+    """``(E_ind, deferred)``: paper Eq. 2 over the light that reaches the points after at least one bounce, (N, 3)
+    numpy, and the paths' hits on translucent objects that have no transport yet (``incident``'s).
 
     Cosine-weighted directions (pdf ``cos / pi``): a point with ``P`` paths gets
     ``E_ind = (1/P) sum_j F_t(eta, cos_j) g(cos_j) pi L_ind(x, w_j)`` (:class:`Entry`); with ``P < 1`` a random
@@ -418,9 +419,9 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
     Parameters
     ----------
     incident : callable
-        ``incident(sampler, rays, weight, tags) -> (K, 3) numpy``: ``weight`` times the radiance arriving along
-        ``rays`` after at least one bounce (:meth:`convsss.scene.shading.Shader.incident`); ``tags`` are the index
-        of each ray's point.
+        ``incident(sampler, rays, weight, tags) -> ((K, 3) numpy, deferred list)``: ``weight`` times the radiance
+        arriving along ``rays`` after at least one bounce, and the hits it could not resolve yet
+        (:meth:`convsss.scene.shading.Shader.incident`); ``tags`` are the index of each ray's point.
     position, normal : mitsuba.Point3f, mitsuba.Vector3f
         ``N`` points and their outward normals (scene units).
     area : (N,) numpy
@@ -442,8 +443,10 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
 
     Returns
     -------
-    numpy.ndarray
+    irradiance : numpy.ndarray
         (N, 3) indirect irradiance, >= 0.
+    deferred : list
+        What ``incident`` returned besides the radiance, over all the paths.
     """
     n = dr.width(position)
     entry = Entry(eta, albedo, "all", carried=orders, oblique=oblique)
@@ -458,7 +461,7 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
     spacing = DIRECTION_STRATA * math.sqrt(float(np.mean(area)) / min(paths, per_point))
     square = stratified_directions(dr.ravel(position).numpy().reshape(-1, 3), owners, spacing, seed,
                                    DIRECTION_STRATA)
-    out = np.zeros((n, 3))
+    out, deferred = np.zeros((n, 3)), []
     for start in range(0, len(owners), CHUNK_PATHS):
         if stop is not None and stop():
             break
@@ -473,10 +476,11 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         rays = it.spawn_ray(it.sh_frame.to_world(local))
         # Paper Eq. 2 by cosine sampling: F_t(eta, cos) g L cos / (cos / pi) = F_t g pi L, over the paths per point.
         weight = dr.ravel(entry(local.z) * dr.pi * scale).numpy().reshape(-1, 3).astype(np.float64)
-        radiance = incident(sampler, rays, weight, owner)
+        radiance, hits = incident(sampler, rays, weight, owner)
+        deferred += hits
         for c in range(3):
             out[:, c] += np.bincount(owner, radiance[:, c], minlength=n)
-    return np.maximum(np.nan_to_num(out), 0.0)
+    return np.maximum(np.nan_to_num(out), 0.0), deferred
 
 
 def sample_count(area_mm2, cell_mm, sample_density, profile_area_mm2=math.inf, profile_samples=0.0):

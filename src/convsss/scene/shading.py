@@ -47,7 +47,8 @@ The same path tracer gives the light that reaches a translucent object after bou
 (:meth:`Shader.incident`, the indirect part of paper Eq. 2): paths start on the object's surface as at depth 1 of a
 camera path, and the emission their first segment sees is left out (direct light is estimated on its own). An object
 whose transport is not built yet (``None``) has no ``M`` to give: a path that reaches it records the point and its
-weight in :attr:`Shader.deferred`, to be looked up once the transport exists (:meth:`Shader.resolve`).
+weight, which :meth:`Shader.incident` returns beside the radiance, to be looked up once the transport exists
+(:meth:`Shader.resolve`).
 """
 
 import drjit as dr
@@ -101,7 +102,7 @@ class Shader:
     objects : list of TranslucentObject
     transports : list
         One transport per object (``exitance(points_mm) -> (K, 3)``), or ``None`` for an object whose transport is
-        not built yet (its hits are recorded in :attr:`deferred`).
+        not built yet (the hits of :meth:`incident` on it are returned, to be resolved later).
     params : RenderParams
     stop : callable, optional
         Asked between bounces; when it returns True the paths end there (Ctrl-C during Mitsuba's render).
@@ -125,8 +126,9 @@ class Shader:
         self.ctx_reflect = mi.BSDFContext()
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
         self.lookups = 0
-        #: Hits on objects without a transport: ``(object, tag, points_mm, normals, faces, weight)`` per batch.
-        self.deferred = []
+        #: During :meth:`incident`, its hits on objects without a transport: ``(object, tag, points_mm, normals,
+        #: faces, weight)`` per batch (returned by it; None otherwise).
+        self._deferred = None
         #: The mesh tables of :attr:`transports`, by object (:meth:`_hit_exitance`).
         self._tables = {}
         #: The last batch of camera rays and their first hits whose ``M`` came from a transport: ``(rays, lanes,
@@ -163,14 +165,14 @@ class Shader:
                 gain = dr.select(which == k, leaving(cos), gain)
         return gain * fresnel_transmittance(eta, cos) / dr.pi
 
-    def resolve(self, transports, deferred=None, tables=None):
-        """The radiance of the recorded hits (:attr:`deferred`, or the list given) now that ``transports`` exist:
+    def resolve(self, transports, deferred, tables=None):
+        """The radiance of the hits ``deferred`` (as :meth:`incident` returned them) now that ``transports`` exist:
         ``(tags, values (K, 3))``, each hit's ``weight (1/pi) F_t M`` (paper Eq. 7) with its tag, hits of objects
         whose transport is still ``None`` left out. ``tables`` (a dict, filled here) holds the mesh tables of these
         ``transports`` for the next call on the same ones."""
         tables = {} if tables is None else tables
         tags, values = [np.zeros(0, dtype=np.int64)], [np.zeros((0, 3))]
-        for k, tag, points, normals, faces, weight in self.deferred if deferred is None else deferred:
+        for k, tag, points, normals, faces, weight in deferred:
             if transports[k] is None:
                 continue
             tags.append(tag)
@@ -300,11 +302,13 @@ class Shader:
         return self._trace(sampler, ray, 0)
 
     def incident(self, sampler, ray, weight, tags):
-        """Radiance arriving along ``ray`` after at least one bounce, times ``weight``: (K, 3) numpy.
+        """Radiance arriving along ``ray`` after at least one bounce, times ``weight``: ``(radiance, deferred)``, (K, 3)
+        numpy and the hits on objects without a transport.
 
         The rays leave a translucent object's surface, so their first hit is at depth 1 of a camera path (``max_depth``
         and ``rr_depth`` count as for the camera's paths); emission seen at that hit is left out (it is direct light).
-        Hits on objects without a transport go to :attr:`deferred` with their lane's ``tags`` and ``weight``.
+        Hits on objects without a transport are returned in ``deferred`` with their lane's ``tags`` and ``weight``
+        (:meth:`resolve` looks them up once the transports exist).
 
         Parameters
         ----------
@@ -315,19 +319,22 @@ class Shader:
         weight : (K, 3) numpy
             Each lane's factor (e.g. ``F_t pi / paths`` of a cosine-sampled estimate of Eq. 2).
         tags : (K,) numpy int
-            Each lane's label in :attr:`deferred` (e.g. the surface sample it belongs to).
+            Each lane's label in ``deferred`` (e.g. the surface sample it belongs to).
 
         Returns
         -------
-        numpy.ndarray
+        radiance : numpy.ndarray
             (K, 3) ``weight`` times the radiance.
+        deferred : list
+            ``(object, tags, points_mm, normals, faces, weight)`` per object and batch reached without a transport.
         """
         self._tags, self._weight = np.asarray(tags), np.asarray(weight, dtype=np.float64)
+        self._deferred = deferred = []
         try:
             radiance, _ = self._trace(sampler, ray, 1)
-            return _to_numpy3(radiance).astype(np.float64) * self._weight
+            return _to_numpy3(radiance).astype(np.float64) * self._weight, deferred
         finally:
-            self._tags = self._weight = None
+            self._tags = self._weight = self._deferred = None
 
     def _trace(self, sampler, ray, first_depth):
         """The paths from ``first_depth`` (0: camera rays; 1: rays leaving a translucent surface, whose first hit's
@@ -452,7 +459,7 @@ class Shader:
     def _recorded(self, total, records, count):
         """Adds to ``total`` the recorded hits' ``weight M`` from each object's transport (numpy, positions in mm,
         outward normals for the transports that use them); hits on an object without a transport go to
-        :attr:`deferred` with their lane's tag and weight (:meth:`incident`). Returns the lanes and ``M`` (numpy) of
+        :meth:`incident`'s deferred hits with their lane's tag and weight. Returns the lanes and ``M`` (numpy) of
         the hits that were the first of a camera ray."""
         if count == 0:
             return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
@@ -473,7 +480,7 @@ class Shader:
                 continue
             if transport is None:
                 tag = lanes[mine]
-                self.deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation, faces[mine],
+                self._deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation, faces[mine],
                                       beta[mine] * self._weight[tag]))
                 continue
             exitance[mine] = self._hit_exitance(k, transport, points[mine], normals[mine] * obj.orientation,

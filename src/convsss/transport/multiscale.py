@@ -4,11 +4,11 @@ As particle–particle/particle–mesh N-body codes and multilevel summation spl
 radii ``r_1 < r_c`` into a core, a middle band and a far field, ``R_d = R_core + R_mid + R_far``, each piece smooth
 at the scale of its split radius. A split at ``r`` replaces ``f`` inside ``r`` by a cap,
 
-    cap_r[f](x) = a + b x^2,   a, b per channel matching the value and slope of f at r,                 (Eq. S1)
+    cap_r[f](x) = a + b x^2,   a, b per channel matching the value and slope of f at r,                 (Eq. M1)
 
 so that ``f - cap_r[f]`` is zero from ``r`` on and ``cap_r[f]`` is C^1:
 
-    R_far  = R_d beyond r_c, cap_{r_c}[R_d] inside;                                                      (Eq. S2)
+    R_far  = R_d beyond r_c, cap_{r_c}[R_d] inside;                                                      (Eq. M2)
     R_mid  = R_d - R_far beyond r_1, cap_{r_1}[R_d - R_far] inside (zero from r_c on);
     R_core = R_d - R_far - R_mid (zero from r_1 on; >= 0 for a profile convex inside r_1, such as the dipole).
 
@@ -118,7 +118,7 @@ def scales(profile, accuracy):
 
 
 def cap(fn, r):
-    """Eq. S1: ``(a, b)`` per channel, shape (3,) each, with ``a + b r^2`` matching ``fn`` (radii -> (..., 3)) in
+    """Eq. M1: ``(a, b)`` per channel, shape (3,) each, with ``a + b r^2`` matching ``fn`` (radii -> (..., 3)) in
     value and slope at ``r``."""
     step = 1e-4 * r
     value = np.asarray(fn(np.float64(r)), dtype=np.float64)
@@ -128,7 +128,7 @@ def cap(fn, r):
 
 
 def split(profile, r_1, r_c):
-    """Eq. S2: the far cap ``(a, b)`` and the core and middle-band tables, each (BAND_TABLE, 3) uniform in ``r^2`` on
+    """Eq. M2: the far cap ``(a, b)`` and the core and middle-band tables, each (BAND_TABLE, 3) uniform in ``r^2`` on
     ``[0, r_1^2]`` and ``[0, r_c^2]`` (their last entry 0)."""
     far = cap(profile, r_c)
 
@@ -147,7 +147,7 @@ def split(profile, r_1, r_c):
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def _far_octant(h, shape, r_c, a, b, reach, r_scale, ds, table):
-    """``R_far`` (Eq. S1) at the mesh offsets ``h (i, j, m)``, ``0 <= i, j, m < shape``; 0 from ``reach`` on."""
+    """``R_far`` (Eq. M2) at the mesh offsets ``h (i, j, m)``, ``0 <= i, j, m < shape``; 0 from ``reach`` on."""
     out = np.zeros((3, shape[0], shape[1], shape[2]))
     r_c2 = r_c * r_c
     for i in numba.prange(shape[0]):
@@ -171,7 +171,7 @@ def even_fast_len(n):
 
 
 def far_spectrum(radial, r_c, a, b, h, fft_shape, reach):
-    """The spectrum (``rfftn``) of ``R_far`` (Eq. S2) on a zero-padded mesh of ``fft_shape`` (every length even;
+    """The spectrum (``rfftn``) of ``R_far`` (Eq. M2) on a zero-padded mesh of ``fft_shape`` (every length even;
     negative offsets wrapped to the end) divided by the transfer function of the deposit and read-back,
     ``prod_axes sinc^6(f)`` (``f`` in cycles per cell, each quadratic B-spline being ``sinc^3``), so that on average
     over where the samples and the queries fall in their cells the mesh reproduces ``R_far`` rather than its blur.
@@ -734,7 +734,7 @@ class MultiscaleTransport(Transport):
         return f.rotate(points) if vectors else f.to_view(points)
 
     def _far_field(self, position, flux, lo, hi):
-        """Deposit the clusters' flux on the mesh, convolve with ``R_far`` by 3-D FFTs (Eq. S2), keep the field.
+        """Deposit the clusters' flux on the mesh, convolve with ``R_far`` by 3-D FFTs (Eq. M2), keep the field.
 
         The mesh reaches ``r_c`` past the samples (queries off the surface within that distance read it; farther
         ones read its border); float32 throughout (the error aimed at is far above its round-off).
