@@ -1,7 +1,7 @@
 """convsss: convolution-based subsurface scattering (Munoz et al., Computer Graphics Forum 30(8), 2011).
 
 Layers parallel to the image plane, surface irradiance deposited in them, and convolutions with a diffusion
-profile through FFTs. See ``DESIGN.md`` for the data flow: scene -> samples -> transport -> shading -> image.
+profile through FFTs. See ``docs/architecture.md`` for the data flow: scene -> samples -> transport -> shading -> image.
 """
 
 __version__ = "0.1.0"

@@ -1,6 +1,5 @@
 """Tiny scenes for the renderer's tests: a sphere of a preset material seen by a small camera."""
 
-import numpy as np
 import pytest
 
 import convsss
@@ -49,18 +48,6 @@ def sphere_scene(mi):
 @pytest.fixture(scope="session")
 def object_mask(mi):
     """``object_mask(scene)`` -> (H, W) bool: pixels whose centre ray hits a translucent shape first."""
-    return lambda scene: _object_mask(mi, scene)
+    from convsss.scene.reference import translucent_pixels
 
-
-def _object_mask(mi, scene):
-    import drjit as dr
-
-    sensor = scene.sensors()[0]
-    w, h = (int(x) for x in sensor.film().crop_size())
-    y, x = np.mgrid[0:h, 0:w]
-    pos = mi.Point2f(((x.ravel() + 0.5) / w).astype(np.float32), ((y.ravel() + 0.5) / h).astype(np.float32))
-    ray, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))
-    si = scene.ray_intersect(ray)
-    medium = si.shape.interior_medium()
-    hit = si.is_valid() & (dr.reinterpret_array(mi.UInt32, medium) != 0)
-    return hit.numpy().reshape(h, w)
+    return translucent_pixels

@@ -1,4 +1,5 @@
-"""Determinism (DESIGN.md): the same inputs and seed give the same image, byte for byte, whatever the thread count."""
+"""Determinism (docs/architecture.md): the same inputs and seed give the same image, byte for byte, whatever the
+thread count."""
 
 import os
 import subprocess

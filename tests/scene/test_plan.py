@@ -18,7 +18,7 @@ def _bunny(mi, material, size_mm, res=96, **integrator):
 
 def _no_sampling(monkeypatch):
     """Make drawing samples fail: a refusal that comes after it is a test failure."""
-    from convsss.scene import integrator as module
+    from convsss.scene import lighting as module
 
     def drawn(*args, **kwargs):
         raise AssertionError("samples were drawn before the refusal")

@@ -18,8 +18,8 @@ def test_passes_average_and_report(mi, sphere_scene):
 
 
 def test_point_light_behind_a_dielectric_warns_black(mi, sphere_scene):
-    """DESIGN.md: a point light behind a smooth dielectric is unreachable for a path tracer; the pass is black over
-    the object's pixels, and says so once. The index-matched sphere under the same light does not warn."""
+    """docs/architecture.md: a point light behind a smooth dielectric is unreachable for a path tracer; the pass is
+    black over the object's pixels, and says so once. The index-matched sphere under the same light does not warn."""
     dark = mi.load_dict(sphere_scene(res=16, boundary="dielectric"))
     objects = translucent_pixels(dark)
     assert objects.shape == (16, 16) and 10 < objects.sum() < 16 * 16

@@ -75,21 +75,24 @@ def scene_dict(scene, resolution=800):
 
 
 def prepare_case(scene_dict, sample_density=4.0, seed=0, profile=""):
-    """Samples and visible points of the scene's (first) translucent object, as a render prepares them, its profile
-    chosen by ``profile`` (the integrator's ``profile`` parameter; empty: the default model).
+    """Samples and visible points of the scene's (first) translucent object, prepared by the render's own stages
+    (:func:`~convsss.scene.plan.plan_samples`, :func:`~convsss.scene.lighting.light_samples`: the same sample counts,
+    direct and indirect irradiance), its profile chosen by ``profile`` (the integrator's ``profile`` parameter;
+    empty: the default model), at the render's defaults but ``sample_density``.
 
-    Returns a dict: ``samples`` (IrradianceSamples), ``points`` (K, 3) mm, their outward ``normals``, ``profile``,
-    ``frame`` (ViewFrame),
-    ``cell_size`` (mm, the pixel footprint at the object), ``object`` (its summary) and ``prepare_s`` (seconds).
+    Returns a dict: ``samples`` (IrradianceSamples), ``points`` (K, 3) mm, their outward ``normals`` (the visible
+    pixel centres of :func:`~convsss.scene.camera.first_hits`), ``profile``, ``frame`` (ViewFrame), ``cell_size``
+    (mm, the pixel footprint at the object), ``object`` (its summary and plan) and ``prepare_s`` (seconds).
     """
-    import drjit as dr
-
     from ..backend import load_mitsuba
-    from ..scene.camera import pixel_footprint, sensor_frame
-    from ..scene.irradiance import object_samples, sample_count
+    from ..errors import ConvsssError
+    from ..samples import IrradianceSamples
+    from ..scene.camera import first_hits, sensor_frame
+    from ..scene.lighting import light_samples
     from ..scene.loading import load_scene
-    from ..scene.objects import find_translucent_objects, hit_indices
+    from ..scene.objects import find_translucent_objects
     from ..scene.params import RenderParams
+    from ..scene.plan import plan_samples
 
     mi = load_mitsuba()
     start = time.perf_counter()
@@ -99,23 +102,16 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0, profile=""):
     frame = sensor_frame(sensor, params.unit_mm)
     obj = find_translucent_objects(mi, scene, params.unit_mm, params.profile, params.profile_total,
                                    params.orders)[0]
-    depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
-    cell = pixel_footprint(sensor, frame, depth, params.unit_mm)
-    samples = object_samples(scene, obj, sample_count(obj.area_mm2, cell, sample_density), params.irradiance_samples,
-                             params.unit_mm, seed)
-    summary = {**obj.summary(), "samples": len(samples), "pixel_footprint_mm": cell, "view_depth_mm": depth}
-
+    (seen,) = first_hits(scene, sensor, frame, params.unit_mm, [obj])
+    plan = plan_samples(scene, sensor, frame, [obj], [seen], params)
+    if not plan.objects:
+        raise ConvsssError("the benchmark scene's object is not visible from its camera")
+    lighting = light_samples(scene, [obj], plan, params, seed)
+    s, (q,) = lighting.samples[0], plan.objects
+    samples = IrradianceSamples(s.position, s.area, lighting.irradiance[0], s.normal)
     width, height = (int(x) for x in sensor.film().crop_size())
-    y, x = np.mgrid[0:height, 0:width]
-    film = mi.Point2f(((x.ravel() + 0.5) / width).astype(np.float32), ((y.ravel() + 0.5) / height).astype(np.float32))
-    ray, _ = sensor.sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
-    si = scene.ray_intersect(ray)
-    on_object = si.is_valid().numpy() & obj.hit(*(a.numpy() for a in hit_indices(mi, si)))
-    points = dr.ravel(si.p).numpy().reshape(-1, 3)[on_object].astype(np.float64) * params.unit_mm
-    normals = dr.ravel(mi.Vector3f(si.n)).numpy().reshape(-1, 3)[on_object].astype(np.float64) * obj.orientation
-    return {"samples": samples, "points": np.ascontiguousarray(points), "normals": np.ascontiguousarray(normals),
-            "profile": obj.profile,
-            "frame": frame, "cell_size": cell,
-            "object": summary, "image": [width, height], "prepare_s": time.perf_counter() - start}
-
-
+    return {"samples": samples, "points": np.ascontiguousarray(seen.position),
+            "normals": np.ascontiguousarray(seen.normal * obj.orientation), "profile": obj.profile,
+            "frame": frame, "cell_size": q.pixel_footprint_mm,
+            "object": {**obj.summary(), **q.summary(obj.area_mm2), "samples": len(samples)},
+            "image": [width, height], "prepare_s": time.perf_counter() - start}

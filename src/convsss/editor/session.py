@@ -1,7 +1,7 @@
 """An edit session: one scene kept prepared while one translucent object's material, profile model and the
 transport's accuracy change, each edit rebuilding only what depends on it (the engine of ``convsss edit``; no HTTP).
 
-Along the data flow scene -> samples -> irradiance -> transport -> shading (DESIGN.md):
+Along the data flow scene -> samples -> irradiance -> transport -> shading (docs/architecture.md):
 
 - ``sigma_s'`` and ``sigma_a`` (given directly, by colour and mean free path, or as a preset of the same ``eta``),
   the profile model and the transport's ``accuracy`` change the profile ``R_d`` of paper Eq. 1 (or how it is summed)

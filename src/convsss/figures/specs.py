@@ -7,8 +7,8 @@ tone-mapped by one operator, so brightness differences between them are real; a 
 (the gallery) gives every panel its own group.
 
 Scenes use an index-matched (``null``) boundary wherever a path-traced column or an error against path tracing is
-wanted (a point light behind a smooth dielectric is unreachable for a path tracer, DESIGN.md); the gallery uses a
-smooth dielectric with the paper's Phong highlights.
+wanted (a point light behind a smooth dielectric is unreachable for a path tracer, docs/architecture.md); the gallery
+uses a smooth dielectric with the paper's Phong highlights.
 """
 
 from dataclasses import dataclass, field

@@ -1,9 +1,14 @@
-"""The Mitsuba side of convsss: scenes in, images out (DESIGN.md: scene -> samples -> transport -> shading).
+"""The Mitsuba side of convsss: scenes in, images out (docs/architecture.md: scene -> plan -> samples -> transport ->
+shading).
 
 - :mod:`.params`: the integrator's parameters, checked;
 - :mod:`.materials`: a material written as a Mitsuba medium (``sigma_t / scale / albedo``) and boundary;
 - :mod:`.objects`: translucent objects found in a loaded scene;
-- :mod:`.irradiance`: surface samples and their irradiance (paper Eq. 2);
+- :mod:`.camera`: the camera's frame, a pixel's footprint and what it sees;
+- :mod:`.plan`: the sampling plan (cells, sample counts, memory and time), refused before any work;
+- :mod:`.irradiance`: surface samples and their irradiance (paper Eq. 2); :mod:`.lighting`, the stage that draws
+  the planned samples and lights them (direct and indirect);
+- :mod:`.passes`: the transports, and the light between translucent objects;
 - :mod:`.shading`: camera rays (paper Eq. 7 plus boundary reflection, path tracing elsewhere);
 - :mod:`.screen`, :mod:`.mesh_exitance`: the transports' exitance at pixel centres and at mesh vertices, interpolated
   for the shading;

@@ -55,6 +55,22 @@ def pixel_footprint(sensor, frame, depth_mm, unit_mm):
     return float(np.linalg.norm(points[1] - points[0]))
 
 
+def pixel_centre_rays(sensor, first=0, rows=None):
+    """One ray through the centre of each pixel of rows ``first`` .. ``first + rows`` (default: all) of the sensor's
+    crop window: ``(rays, pixel)``, ``pixel`` the flat indices ``x + y * width`` (numpy int64).
+
+    The camera's sample space spans the crop window, so pixel ``(x, y)`` of it is at ``((x + 0.5) / crop_width,
+    (y + 0.5) / crop_height)``, as Mitsuba's integrators place it.
+    """
+    width, height = (int(n) for n in sensor.film().crop_size())
+    last = height if rows is None else min(first + rows, height)
+    y, x = np.mgrid[first:last, 0:width]
+    u = ((x.ravel() + 0.5) / width).astype(np.float32)
+    v = ((y.ravel() + 0.5) / height).astype(np.float32)
+    rays, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(u, v), mi.Point2f(0.5, 0.5))
+    return rays, (x + y * width).ravel()
+
+
 @dataclass
 class VisiblePoints:
     """Where one translucent object is the first surface seen, one ray per pixel centre of the crop window.
@@ -79,8 +95,7 @@ class VisiblePoints:
 def first_hits(scene, sensor, frame, unit_mm, objects):
     """Where each object is the first surface seen, over one ray per pixel centre of the crop window.
 
-    The camera's sample space spans the crop window, so pixel ``(x, y)`` of it is at ``((x + 0.5) / crop_width,
-    (y + 0.5) / crop_height)``, as Mitsuba's integrators place it.
+    The rays are :func:`pixel_centre_rays`.
 
     Parameters
     ----------
@@ -99,17 +114,13 @@ def first_hits(scene, sensor, frame, unit_mm, objects):
     found = [[] for _ in objects]
     rows = max(1, RAYS_PER_BATCH // int(crop[0]))
     for first in range(0, int(crop[1]), rows):
-        y, x = np.mgrid[first:min(first + rows, int(crop[1])), 0:int(crop[0])]
-        u = ((x.ravel() + 0.5) / crop[0]).astype(np.float32)
-        v = ((y.ravel() + 0.5) / crop[1]).astype(np.float32)
-        ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(u, v), mi.Point2f(0.5, 0.5))
+        ray, pixel = pixel_centre_rays(sensor, first, rows)
         si = scene.ray_intersect(ray)
         hit = si.is_valid().numpy()
         shapes, instances = (a.numpy() for a in hit_indices(mi, si))
         position = dr.ravel(si.p).numpy().reshape(-1, 3).astype(np.float64) * unit_mm
         normal = dr.ravel(si.n).numpy().reshape(-1, 3).astype(np.float64)
         away = (dr.dot(si.n, ray.d) > 0).numpy()
-        pixel = (x + y * int(crop[0])).ravel()
         for chunks, obj in zip(found, objects):
             mine = hit & obj.hit(shapes, instances)
             chunks.append((pixel[mine], position[mine], normal[mine], away[mine]))

@@ -1,19 +1,20 @@
-"""The ``convsss`` Mitsuba integrator: scene -> irradiance samples -> transport -> shading (DESIGN.md data flow).
+"""The ``convsss`` Mitsuba integrator: Mitsuba glue over the render's stages (docs/architecture.md, the data flow).
 
-``render()`` does, for one sensor:
+``render()`` does, for one sensor, each stage a public function passing plain data to the next:
 
-1. find the translucent objects (:mod:`.objects`);
-2. per object, sample its whole surface, ``N = sample_density * A / h^2`` points for a layer cell ``h`` (the pixel
-   footprint at the object's depth divided by ``downsample``), so every cell column gets several samples, and at
-   least ``profile_samples * A / A_eff`` for the profile's effective area ``A_eff``, so that the noise the discrete
-   samples leave in the exitance (which more camera samples do not average out) stays near 1 %; and
-   compute their irradiance (paper Eq. 2, :mod:`.irradiance`): direct light from every emitter, and indirect light
-   path traced into the scene from the samples (``indirect_samples`` paths per sample) with the shader's path
-   tracer, whose hits on translucent objects wait for their transports;
-3. build each object's transport (paper §4–5 for ``convolution``) in the camera's frame, look the waiting hits up
-   in them and build the transports of the objects they light again (``indirect_passes`` times);
-4. shade the camera rays (:mod:`.shading`) through Mitsuba's own render loop, so the film, its reconstruction
-   filter, crop window, sampler and sample count behave as for any Mitsuba integrator.
+1. the translucent objects (:func:`.objects.find_translucent_objects`) and what the camera sees of them
+   (:func:`.camera.first_hits`);
+2. the sampling plan (:func:`.plan.plan_samples`): per object the layer cell (the pixel footprint at its depth),
+   ``N = max(sample_density A / h^2, profile_samples A / A_eff)`` surface samples, and the memory and time they and
+   the transport need, refused before anything is drawn;
+3. the samples and their irradiance (:func:`.lighting.light_samples`, paper Eq. 2): direct light from every
+   emitter, and indirect light path traced into the scene from the samples (``indirect_samples`` paths each) with
+   the shader's path tracer, whose hits on translucent objects wait for their transports;
+4. each object's transport in the camera's frame, and the light between translucent objects
+   (:func:`.passes.build_transports`, :func:`.passes.translucent_passes`, ``indirect_passes`` times);
+5. the exitance at the visible pixel centres (:class:`.screen.ScreenExitance`), and the shading of the camera rays
+   (:class:`.shading.Shader`) through Mitsuba's own render loop, so the film, its reconstruction filter, crop
+   window, sampler and sample count behave as for any Mitsuba integrator.
 
 Per-stage seconds and everything a user needs to judge the run are in :attr:`ConvsssIntegrator.stats`.
 """
@@ -28,16 +29,16 @@ import numpy as np
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
 from ..fresnel import same_eta
-from ..samples import IrradianceSamples
 from ..signals import mitsuba_render
 from ..timing import StageTimer
-from ..transport import make_transport
 from .aovs import FirstHitAOVs
 from .camera import check_camera, first_hits, sensor_frame
-from .irradiance import indirect_irradiance, keeps_irradiance, object_samples
+from .irradiance import keeps_irradiance
+from .lighting import light_samples
 from .objects import find_translucent_objects
 from .params import RenderParams, aov_channels, parse_aovs, plugin_parameters
-from .plan import check_film, plan_samples, transport_params
+from .passes import build_transports, translucent_passes
+from .plan import check_film, plan_samples
 from .presets import register_medium
 from .screen import ScreenExitance
 from .shading import Shader
@@ -72,10 +73,10 @@ class PreparedState:
     """What :meth:`ConvsssIntegrator.prepare` built for one sensor, kept so that :meth:`ConvsssIntegrator.retransport`
     can rebuild the transports alone (new profiles or transport parameters) on the same samples and irradiance.
 
-    ``objects``, ``visible``, ``cells``, ``samples``, ``irradiance`` and ``deferred`` hold one entry per object seen
-    by the camera: the object, its visible points, the pixel footprint at its depth (mm), its irradiance samples
-    with the direct irradiance, the direct + indirect irradiance (N, 3) without the light of translucent objects,
-    and the indirect paths' hits on translucent objects (looked up in the transports, :meth:`Shader.resolve`).
+    ``objects``, ``visible`` and ``cells`` hold one entry per object seen by the camera: the object, its visible
+    points, the pixel footprint at its depth (mm); ``lighting`` their samples and irradiance (:class:`~.lighting.
+    Lighting`: the samples with their direct irradiance, direct + indirect without the light of translucent objects,
+    the indirect paths' hits on translucent objects), ``transports`` theirs.
     """
 
     scene: object
@@ -85,11 +86,18 @@ class PreparedState:
     objects: list
     visible: list
     cells: list
-    samples: list
-    irradiance: list
-    deferred: list
-    tracer: object
+    lighting: object
     transports: list = field(default_factory=list)
+
+    @property
+    def samples(self):
+        """Each object's :class:`~convsss.samples.IrradianceSamples`, with the direct irradiance."""
+        return self.lighting.samples
+
+    @property
+    def irradiance(self):
+        """Each object's direct + indirect irradiance (N, 3), without the light of translucent objects."""
+        return self.lighting.irradiance
 
 
 class ConvsssIntegrator(mi.SamplingIntegrator):
@@ -165,24 +173,14 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         shown_at = [seen[q.index] for q in plan.objects]
         cells = [q.pixel_footprint_mm for q in plan.objects]
         per_object = [{**obj.summary(), **q.summary(obj.area_mm2)} for obj, q in zip(shown, plan.objects)]
-        direct = [object_samples(scene, objects[q.index], q.samples, p.irradiance_samples, p.unit_mm, _seed(seed),
-                                 stream=q.index, stage=stage, oblique=p.incidence == "oblique", orders=p.orders)
-                  for q in plan.objects]
-        indirect, deferred, tracer = self._indirect(scene, shown, direct, _seed(seed), stage)
-        irradiance = [s.irradiance if e is None else s.irradiance + e for s, e in zip(direct, indirect)]
-
-        def build(k):
-            s = direct[k]
-            samples = IrradianceSamples(s.position, s.area, irradiance[k], s.normal)
-            with stage("transport"):
-                return make_transport(p.transport, samples, shown[k].profile, frame=frame,
-                                      **transport_params(p, cells[k]))
-
-        transports, from_translucent, passes = self._translucent_passes(tracer, direct, irradiance, deferred, build,
-                                                                        stage)
-        for k, s in enumerate(direct):  # flux = sum_i A_i E_i, as area @ E (no (N, 3) temporaries)
+        lighting = light_samples(scene, objects, plan, p, _seed(seed), stage, self.should_stop)
+        transports = build_transports(lighting.samples, lighting.irradiance, [o.profile for o in shown], cells, frame,
+                                      p, stage)
+        transports, from_translucent, passes = translucent_passes(transports, lighting, p.indirect_passes, stage,
+                                                                  self.should_stop)
+        for k, s in enumerate(lighting.samples):  # flux = sum_i A_i E_i, as area @ E (no (N, 3) temporaries)
             flux_direct, flux_translucent = s.area @ s.irradiance, s.area @ from_translucent[k]
-            total = s.area @ irradiance[k] + flux_translucent
+            total = s.area @ lighting.irradiance[k] + flux_translucent
             per_object[k].update(samples=len(s), flux=total.tolist(), flux_direct=flux_direct.tolist(),
                                  flux_indirect=(total - flux_direct).tolist(),
                                  flux_from_translucent=flux_translucent.tolist())
@@ -194,64 +192,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                       "hidden": list(plan.hidden), "samples": int(sum(o["samples"] for o in per_object)),
                       "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
-        self.prepared = PreparedState(scene, sensor, _seed(seed), frame, shown, shown_at, cells, direct, irradiance,
-                                      deferred, tracer, transports)
+        self.prepared = PreparedState(scene, sensor, _seed(seed), frame, shown, shown_at, cells, lighting, transports)
         return self._shader
-
-    def _indirect(self, scene, objects, samples, seed, stage):
-        """Indirect irradiance (paper Eq. 2 after at least one bounce) at every object's samples, path traced with the
-        shader's path tracer before any transport exists: ``(indirect, deferred, tracer)``, ``indirect[k]`` (N, 3)
-        numpy or None (none asked for), ``deferred[k]`` the hits on translucent objects, to be looked up once their
-        transports exist (:meth:`Shader.resolve`), as :func:`indirect_irradiance` returned them."""
-        p = self.params
-        none = [None] * len(objects), [[] for _ in objects], None
-        # Indirect light needs a path of at least 3 segments (camera, the object, a bounce, an emitter).
-        if p.indirect_samples == 0 or 0 < p.max_depth < 3 or not objects:
-            return none
-        tracer = Shader(scene, objects, [None] * len(objects), p, stop=self.should_stop)
-        indirect, deferred = [], []
-        with stage("indirect"):
-            for k, (obj, s) in enumerate(zip(objects, samples)):
-                position = mi.Point3f(*np.ascontiguousarray((s.position / p.unit_mm).T, dtype=np.float32))
-                normal = mi.Vector3f(*np.ascontiguousarray(s.normal.T, dtype=np.float32))
-                e, hits = indirect_irradiance(tracer.incident, position, normal, s.area / p.unit_mm**2, obj.eta,
-                                              p.indirect_samples, seed + 104729 * (k + 1), stop=self.should_stop,
-                                              albedo=obj.material.albedo_prime, orders=p.orders,
-                                              oblique=p.incidence == "oblique")
-                indirect.append(e)
-                deferred.append(hits)
-        return indirect, deferred, tracer
-
-    def _translucent_passes(self, tracer, samples, irradiance, deferred, build, stage):
-        """Every object's transport, with the light that reached it through or off a translucent object (another, or
-        itself): ``(transports, from_translucent, passes)``, ``from_translucent[k]`` (N, 3) numpy irradiance and
-        ``passes`` one ``{"flux_change": ...}`` per pass (the largest change of an object's flux, relative to it).
-
-        That light needs the exitance of the objects it came from, which depends on it too: Jacobi passes. The
-        transports are built from ``irradiance`` (``build(k)``); each of ``indirect_passes`` passes looks the
-        recorded hits ``deferred`` up in the last transports (paper Eq. 7) and relights those of the objects they
-        reach with it (:meth:`~convsss.transport.base.Transport.relit`: the samples' places are kept). One pass
-        leaves out light that crossed between translucent objects twice.
-        """
-        transports = [build(k) for k in range(len(samples))]
-        light = [np.zeros_like(e) for e in irradiance]
-        passes = []
-        while any(deferred) and len(passes) < self.params.indirect_passes and not self.should_stop():
-            change, tables = 0.0, {}  # the mesh tables of this pass's transports
-            with stage("indirect"):
-                for k, (s, records) in enumerate(zip(samples, deferred)):
-                    tags, values = tracer.resolve(transports, records, tables)
-                    new = np.stack([np.bincount(tags, values[:, c], minlength=len(s)) for c in range(3)], axis=1)
-                    new = np.maximum(new, 0.0)
-                    moved = np.abs(s.area @ new - s.area @ light[k])
-                    flux = s.area @ irradiance[k] + s.area @ new
-                    change = max(change, float(np.max(moved / np.maximum(flux, 1e-300))))
-                    light[k] = new
-            passes.append({"flux_change": change})
-            with stage("transport"):
-                transports = [t.relit(irradiance[k] + light[k]) if records else t
-                              for k, (t, records) in enumerate(zip(transports, deferred))]
-        return transports, light, passes
 
     @_one_at_a_time
     def retransport(self, objects=None, params=None):
@@ -301,15 +243,10 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self._stage(name)
             return timer(name)
 
-        def build(k):  # as prepare's, with the new objects' profiles
-            s = state.samples[k]
-            samples = IrradianceSamples(s.position, s.area, state.irradiance[k], s.normal)
-            with stage("transport"):
-                return make_transport(p.transport, samples, objects[k].profile, frame=state.frame,
-                                      **transport_params(p, state.cells[k]))
-
-        transports, _, passes = self._translucent_passes(state.tracer, state.samples, state.irradiance,
-                                                         state.deferred, build, stage)
+        transports = build_transports(state.samples, state.irradiance, [o.profile for o in objects], state.cells,
+                                      state.frame, p, stage)
+        transports, _, passes = translucent_passes(transports, state.lighting, p.indirect_passes, stage,
+                                                   self.should_stop)
         with stage("screen"):
             screen = ScreenExitance(state.sensor, objects, state.visible, transports, p.unit_mm)
         self._shader = Shader(state.scene, objects, transports, p, stop=self.should_stop, screen=screen)

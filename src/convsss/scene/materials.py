@@ -9,7 +9,7 @@ and ``u`` mm per scene unit:
     albedo = sigma_s' / (sigma_a + sigma_s').
 
 The boundary is ``null`` (index-matched, ``eta = 1``), ``dielectric`` or ``roughdielectric`` with
-``int_ior = eta`` (DESIGN.md conventions). Everything here is plain dictionaries, no Mitsuba import.
+``int_ior = eta`` (docs/architecture.md, physics conventions). Everything here is plain dictionaries, no Mitsuba import.
 """
 
 import numpy as np

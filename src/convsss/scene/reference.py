@@ -5,9 +5,9 @@ albedo ~1 it fires fireflies) and paths are unbounded (``max_depth = -1``), so t
 runs in passes of ``pass_spp`` samples with different seeds; after each pass the running mean is handed to a
 callback, so a long run can be stopped and what it has so far is kept.
 
-Mind (DESIGN.md): a point light behind a smooth dielectric cannot be reached by a unidirectional path tracer, so
-such a scene renders black here; use a ``null`` boundary with point lights, or area / environment lights. A pass
-that is black over every pixel where the camera sees a translucent object raises a :class:`BlackPassWarning`.
+Mind (docs/architecture.md): a point light behind a smooth dielectric cannot be reached by a unidirectional path
+tracer, so such a scene renders black here; use a ``null`` boundary with point lights, or area / environment lights. A
+pass that is black over every pixel where the camera sees a translucent object raises a :class:`BlackPassWarning`.
 """
 
 import math
@@ -40,12 +40,12 @@ def translucent_pixels(scene, sensor=0):
     -------
     numpy.ndarray, shape (H, W), bool
     """
+    from .camera import pixel_centre_rays
+
     mi = load_mitsuba()
     sensor = scene.sensors()[sensor] if isinstance(sensor, int) else sensor
     width, height = (int(n) for n in sensor.film().crop_size())
-    y, x = np.mgrid[0:height, 0:width]
-    centre = mi.Point2f(((x.ravel() + 0.5) / width).astype(np.float32), ((y.ravel() + 0.5) / height).astype(np.float32))
-    ray, _ = sensor.sample_ray(0.0, 0.5, centre, mi.Point2f(0.5, 0.5))
+    ray, _ = pixel_centre_rays(sensor)
     si = scene.ray_intersect(ray)
     inside = si.is_valid() & (dr.reinterpret_array(mi.UInt32, si.shape.interior_medium()) != 0)
     return inside.numpy().reshape(height, width)
