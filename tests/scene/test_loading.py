@@ -108,3 +108,15 @@ def test_computed_vertex_normals_are_reordered_and_given_ones_kept(mi, tmp_path)
     loaded = normals(scene(ply))
     assert np.array_equal(loaded[1::2], normals(mi.load_dict(ply))[1::2])
     assert np.array_equal(loaded[::2], computed[::2])
+
+
+@pytest.mark.parametrize("emitter, key", [
+    ({"type": "point", "intensity": -1.0}, "intensity.value = -1"),
+    ({"type": "point", "intensity": float("nan")}, "intensity.value = nan"),
+    ({"type": "constant", "radiance": {"type": "rgb", "value": [1.0, -0.5, 1.0]}}, "radiance.value = -0.5"),
+])
+def test_negative_or_nan_light_is_refused(mi, sphere_scene, emitter, key):
+    """Issue 30, defect 8: a negative intensity rendered negative pixels, a NaN one a black image, exit 0."""
+    scene = sphere_scene(emitters={"lamp": emitter})
+    with pytest.raises(ConvsssError, match=rf"emitter 'lamp' \(\w+\) has {key}.*finite and >= 0"):
+        load_scene(scene)

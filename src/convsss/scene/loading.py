@@ -63,6 +63,7 @@ def load_scene(source, width=None, height=None):
             raise _load_error(error, f"cannot load scene {str(path)!r}") from None
     if not scene.sensors():
         raise ConvsssError("the scene has no sensor (camera) to render from")
+    check_emitters(mi, scene)
     check_named_media(mi, scene)
     order_vertex_normals(mi, scene)
     for name, value in (("width", width), ("height", height)):
@@ -72,6 +73,22 @@ def load_scene(source, width=None, height=None):
         for sensor in scene.sensors():
             resize_film(mi, sensor, width, height)
     return scene
+
+
+def check_emitters(mi, scene):
+    """A one-line error for an emitter whose intensity, radiance, irradiance, scale or image holds a negative or
+    non-finite value (it would render negative or NaN pixels, or black, without a word)."""
+    for k, emitter in enumerate(scene.emitters()):
+        params = mi.traverse(emitter)
+        for key in params.keys():
+            if key.split(".")[-1] not in ("value", "data", "scale"):
+                continue
+            values = np.asarray(params[key], dtype=np.float64)
+            if values.size and not (np.all(np.isfinite(values)) and np.all(values >= 0)):
+                name = emitter.id() if emitter.id() and not emitter.id().startswith("_unnamed") else f"#{k}"
+                bad = values[~(np.isfinite(values) & (values >= 0))].reshape(-1)[0]
+                raise ConvsssError(f"emitter {name!r} ({emitter.class_name()}) has {key} = {bad:g}: emitted light "
+                                   "must be finite and >= 0")
 
 
 def scene_inputs(path):

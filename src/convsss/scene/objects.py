@@ -1,8 +1,8 @@
 """Translucent objects of a loaded Mitsuba scene: shape + boundary BSDF + interior homogeneous medium -> Material.
 
-Convention (DESIGN.md): a shape is translucent when its ``interior`` is a ``homogeneous`` medium and its BSDF is
-``null`` (``eta = 1``), ``dielectric`` or ``roughdielectric`` (``eta = int_ior / ext_ior``, must be >= 1). The medium's
-coefficients are per scene unit; with ``u`` mm per unit,
+Convention (docs/architecture.md): a shape is translucent when its ``interior`` is a ``homogeneous`` medium and its
+BSDF is ``null`` (``eta = 1``), ``dielectric`` or ``roughdielectric`` (``eta = int_ior / ext_ior``, must be >= 1). The
+medium's coefficients are per scene unit; with ``u`` mm per unit,
 
     sigma_t [1/mm] = scale * sigma_t / u,   sigma_s = albedo * sigma_t,   sigma_a = sigma_t - sigma_s,
     sigma_s' = sigma_s (1 - g)     (g of an ``hg`` phase function; 0 when isotropic).
@@ -150,7 +150,13 @@ def boundary_eta(mi, bsdf, name):
     kind = BOUNDARY_CLASSES[cls]
     if kind == "null":
         return kind, 1.0
-    eta = float(np.asarray(mi.traverse(bsdf)["eta"]).reshape(-1)[0])
+    params = mi.traverse(bsdf)
+    for key in (k for k in params.keys() if k.split(".")[0] in ("alpha", "alpha_u", "alpha_v")):
+        alpha = np.asarray(params[key], dtype=np.float64)
+        if not (np.all(np.isfinite(alpha)) and np.all(alpha >= 0)):
+            raise ConvsssError(f"translucent shape {name!r}: the roughdielectric's {key.split('.')[0]} = "
+                               f"{alpha.reshape(-1)[:3].tolist()} is not allowed: roughness is finite and >= 0")
+    eta = float(np.asarray(params["eta"]).reshape(-1)[0])
     if not eta >= 1.0:
         raise ConvsssError(f"translucent shape {name!r}: boundary eta = int_ior/ext_ior = {eta:.4g} is not allowed: "
                            "it must be >= 1 (the object denser than its surroundings)")
@@ -158,26 +164,29 @@ def boundary_eta(mi, bsdf, name):
 
 
 def mesh_topology(shape):
-    """``(watertight, signed_volume)`` of a mesh in its own space (the world's, or its shapegroup's).
+    """``(watertight, signed_volume, miswound)`` of a mesh in its own space (the world's, or its shapegroup's).
 
     Vertices closer than 1e-7 of the mesh's extent are merged first (loaders split vertices at normal or texture
     seams). Watertight: every edge joins exactly two faces. The signed volume ``sum_f v0 . (v1 x v2) / 6`` is
-    positive when the faces wind around outward normals.
+    positive when the faces wind around outward normals. ``miswound``: the edges that two faces traverse in the same
+    direction (0 when the faces are wound consistently, each edge traversed once each way).
     """
     positions, faces = mesh_arrays(shape)
     if len(faces) == 0:
-        return False, 0.0
+        return False, 0.0, 0
     extent = max(float(np.max(np.ptp(positions, axis=0))), 1e-30)
     _, first, index = np.unique(np.round(positions / extent * 1e7), axis=0, return_index=True, return_inverse=True)
     merged = positions[first]
     faces = index.reshape(-1)[faces]
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    edges = np.sort(directed, axis=1)
     _, counts = np.unique(edges[:, 0] * len(merged) + edges[:, 1], return_counts=True)  # one int64 key per edge
     watertight = bool(len(counts)) and bool(np.all(counts == 2))
+    _, twice = np.unique(directed[:, 0] * len(merged) + directed[:, 1], return_counts=True)
     v0, v1, v2 = (merged[faces[:, k]] for k in range(3))
     signed_volume = float(np.sum(np.einsum("ij,ij->i", v0, np.cross(v1, v2))) / 6.0)
-    return watertight, signed_volume
+    return watertight, signed_volume, int(np.sum(twice > 1))
 
 
 def _surface(mi, shape, name):
@@ -190,7 +199,11 @@ def _surface(mi, shape, name):
                           "surface: the diffusion model needs an object that bounds a volume", MeshWarning,
                           stacklevel=4)
         return 1.0, closed
-    watertight, volume = mesh_topology(shape)
+    watertight, volume, miswound = mesh_topology(shape)
+    if miswound:
+        raise ConvsssError(f"translucent mesh {name!r} has faces wound both ways ({miswound} edges traversed twice in "
+                           "the same direction): its inside and outside are ill-defined; orient its faces "
+                           "consistently (e.g. Blender's Recalculate Outside)")
     if not watertight:
         warnings.warn(f"translucent mesh {name!r} is not watertight (some edges do not join exactly two faces): "
                       "irradiance leaks through its holes and its inside is ill-defined", MeshWarning, stacklevel=4)
@@ -216,6 +229,37 @@ def _check_span(obj, unit_mm):
         warnings.warn(f"{where}: under one mean free path the object is nearly transparent and the diffusion model "
                       "does not hold (path trace it with `convsss reference`), or unit_mm is wrong", UnitsWarning,
                       stacklevel=4)
+
+
+def check_lights_outside(mi, scene, objects):
+    """A one-line error for a point or spot light inside a closed translucent object: the diffusion model lights an
+    object through its surface from outside (it would render the object black). Inside is decided by the parity of
+    the object's surface crossings along a ray from the light."""
+
+    for emitter in scene.emitters():
+        params = mi.traverse(emitter)
+        if "position" in params:
+            position = np.asarray(params["position"], dtype=np.float64).reshape(-1)[:3]
+        elif emitter.class_name() == "SpotLight" and "to_world" in params:
+            position = np.asarray(params["to_world"].matrix, dtype=np.float64).reshape(4, 4)[:3, 3]
+        else:
+            continue
+        for obj in objects:
+            lo, hi = world_bbox(obj.shape, obj.to_world)  # scene units, as the light's position
+            if not (obj.closed and np.all(position >= lo) and np.all(position <= hi)):
+                continue
+            ray = mi.Ray3f(mi.Point3f(*(float(x) for x in position)), mi.Vector3f(0.5773503, 0.5773503, 0.5773503))
+            crossings = 0
+            for _ in range(10_000):
+                si = scene.ray_intersect(ray)
+                if not bool(si.is_valid().numpy()[0]):
+                    break
+                crossings += bool(obj.hit(*(a.numpy() for a in hit_indices(mi, si)))[0])
+                ray = si.spawn_ray(ray.d)
+            if crossings % 2 == 1:
+                raise ConvsssError(f"light {emitter.id()!r} is inside translucent shape {obj.name!r}: the diffusion "
+                                   "model lights objects through their surface from outside; move the light out, or "
+                                   "render the scene with `convsss reference`")
 
 
 def hit_indices(mi, si):
@@ -398,6 +442,7 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
     if not objects:
         raise ConvsssError("the scene has no translucent shape: give a shape an interior 'homogeneous' medium and a "
                            "null, dielectric or roughdielectric BSDF")
+    check_lights_outside(mi, scene, objects)
     names = {o.name for o in objects} | {o.name.split("/")[0] for o in objects}
     unknown = sorted(set(per_object) - names)
     if unknown:
