@@ -120,3 +120,17 @@ def test_negative_or_nan_light_is_refused(mi, sphere_scene, emitter, key):
     scene = sphere_scene(emitters={"lamp": emitter})
     with pytest.raises(ConvsssError, match=rf"emitter 'lamp' \(\w+\) has {key}.*finite and >= 0"):
         load_scene(scene)
+
+
+def test_an_include_cycle_and_absurd_nesting_are_refused_in_one_line(tmp_path):
+    """Issue 30, defect 3: an include cycle was a RecursionError traceback; XML nested 20 000 levels deep crashed
+    Mitsuba's loader. Both are read first, and refused."""
+    (tmp_path / "a.xml").write_text('<scene version="3.0.0"><include filename="b.xml"/></scene>')
+    (tmp_path / "b.xml").write_text('<scene version="3.0.0"><include filename="a.xml"/></scene>')
+    with pytest.raises(ConvsssError, match=r"includes itself: .*a\.xml.* -> .*b\.xml.* -> .*a\.xml"):
+        scene_inputs(tmp_path / "a.xml")
+    deep = tmp_path / "deep.xml"
+    deep.write_text('<scene version="3.0.0">' + "<transform name='t'>" * 20_000 + "</transform>" * 20_000
+                    + "</scene>")
+    with pytest.raises(ConvsssError, match=r"nests its elements 20001 levels deep"):
+        load_scene(deep)

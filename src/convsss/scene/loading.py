@@ -17,11 +17,15 @@ import numpy as np
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
 from .integrator import register
+from .meshfiles import check_mesh_file
 from .presets import check_named_media
 
 #: ``<string name=...>`` properties that name a file: every plugin's ``filename``, the convsss integrator's ``profile``.
 FILE_PROPERTIES = ("filename", "profile")
 
+#: The deepest element nesting a scene file may have (scenes need about 6; Mitsuba's recursive loader crashed at
+#: 20 000).
+MAX_XML_DEPTH = 256
 #: Largest difference (per component) between a loaded vertex normal and its recomputation for which both are taken
 #: for the normal Mitsuba computed: rounding of a few float32 sums is about 2e-7, normals that came with a mesh
 #: differ far more.
@@ -49,6 +53,8 @@ def load_scene(source, width=None, height=None):
     mi = load_mitsuba()
     register()
     if isinstance(source, dict):
+        for name in _dict_files(source):
+            check_mesh_file(name)
         try:
             scene = mi.load_dict(source, optimize=False)
         except Exception as error:
@@ -57,6 +63,8 @@ def load_scene(source, width=None, height=None):
         path = Path(source)
         if not path.is_file():
             raise ConvsssError(f"scene file {str(path)!r} does not exist")
+        for name in scene_inputs(path)[1:]:  # what would crash Mitsuba's loader is refused first
+            check_mesh_file(name)
         try:
             scene = mi.load_file(str(path), optimize=False)
         except Exception as error:
@@ -73,6 +81,16 @@ def load_scene(source, width=None, height=None):
         for sensor in scene.sensors():
             resize_film(mi, sensor, width, height)
     return scene
+
+
+def _dict_files(value):
+    """Every ``filename`` in a scene dictionary, at any depth."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            if key == "filename" and isinstance(item, (str, Path)):
+                yield item
+            else:
+                yield from _dict_files(item)
 
 
 def check_emitters(mi, scene):
@@ -119,15 +137,31 @@ def scene_inputs(path):
         raise ConvsssError(f"scene file {str(path)!r} does not exist")
     search = [path.parent, *(Path(str(p)) for p in load_mitsuba().file_resolver())]
     found = [path]
-    _collect_inputs(path, search, {}, found)
+    _collect_inputs(path, search, {}, found, ())
     return found
 
 
-def _collect_inputs(path, search, defaults, found):
+def _depth(root):
+    """The nesting depth of an XML tree (iteratively: a tree may be deeper than Python's recursion limit)."""
+    deepest, stack = 0, [(root, 1)]
+    while stack:
+        element, depth = stack.pop()
+        deepest = max(deepest, depth)
+        stack.extend((child, depth + 1) for child in element)
+    return deepest
+
+
+def _collect_inputs(path, search, defaults, found, including):
+    if path.resolve() in including:
+        chain = " -> ".join(repr(str(p)) for p in (*including, path.resolve()))
+        raise ConvsssError(f"scene {str(including[0])!r} includes itself: {chain}")
     try:
         root = ElementTree.parse(path).getroot()
-    except (ElementTree.ParseError, OSError) as error:
+    except (ElementTree.ParseError, OSError, RecursionError) as error:
         raise ConvsssError(f"cannot read scene {str(path)!r}: {error}") from None
+    if _depth(root) > MAX_XML_DEPTH:
+        raise ConvsssError(f"scene {str(path)!r} nests its elements {_depth(root)} levels deep, more than the "
+                           f"{MAX_XML_DEPTH} a scene needs (Mitsuba's loader would overflow its stack)")
 
     def value(element, attribute):
         return re.sub(r"\$(\w+)", lambda m: defaults.get(m[1], m[0]), element.get(attribute, ""))
@@ -151,7 +185,7 @@ def _collect_inputs(path, search, defaults, found):
             if element.tag == "include":
                 if not found[-1].is_file():
                     raise ConvsssError(f"scene {str(path)!r} includes {str(found[-1])!r}, which does not exist")
-                _collect_inputs(found[-1], search, defaults, found)
+                _collect_inputs(found[-1], search, defaults, found, (*including, path.resolve()))
 
 
 def _resolve(name, folder, search):

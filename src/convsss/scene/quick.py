@@ -57,7 +57,10 @@ def mesh_bounds(path):
     lo, hi : numpy.ndarray, shape (3,), float64
         The corners of its bounding box, in the mesh's units.
     """
+    from .meshfiles import check_mesh_file
+
     mi = load_mitsuba()
+    check_mesh_file(path)
     try:
         shape = mi.load_dict(mesh_dict(path))
     except ConvsssError:
