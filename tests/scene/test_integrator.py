@@ -324,3 +324,21 @@ def test_two_threads_rendering_one_scene_both_get_its_image(mi, sphere_scene):
     assert not errors and not any(t.is_alive() for t in threads), errors
     for image in images:
         np.testing.assert_array_equal(image, alone)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda render, scene: render(None), r"takes a mitsuba.Scene .* not builtins.NoneType"),
+    (lambda render, scene: render(scene, seed=-1), r"seed=-1 is not allowed: Mitsuba's seeds are 32-bit"),
+    (lambda render, scene: render(scene, seed=2**40), r"seed=1099511627776 is not allowed"),
+    (lambda render, scene: render(scene, spp=-4), r"spp=-4 is not allowed"),
+    (lambda render, scene: render(scene, sensor=5), r"sensor=5 is not allowed: the scene has 1 sensor"),
+    (lambda render, scene: scene.integrator().render(scene, 5), r"sensor=5 is not allowed"),
+])
+def test_api_misuse_is_one_line(mi, sphere_scene, call, message):
+    """Issue 30, defect 10: these were a TypeError from sample_tea_32, a bare AssertionError, a nanobind signature
+    dump and an IndexError."""
+    from convsss.scene.integrator import render
+
+    scene = mi.load_dict(sphere_scene(res=8, spp=1))
+    with pytest.raises(convsss.ConvsssError, match=message):
+        call(render, scene)

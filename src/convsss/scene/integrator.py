@@ -289,6 +289,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
         if self._nested:  # Mitsuba's own loop, called from below: let it run
             return mi.SamplingIntegrator.render(self, scene, sensor, seed, spp, develop, evaluate)
+        check_render_call(scene, sensor, seed, spp)
         if isinstance(sensor, int):
             sensor = scene.sensors()[sensor]
         film = sensor.film()
@@ -373,13 +374,32 @@ def register():
     return mi
 
 
+def check_render_call(scene, sensor=0, seed=0, spp=0):
+    """One-line errors for what ``mi.render`` would answer with an assertion, an index error or a signature dump: a
+    scene that is not a Mitsuba scene of this process's variant, a sensor index out of range, a seed outside
+    ``[0, 2^32)`` (Mitsuba's seeds are 32-bit), a negative ``spp``."""
+    if not isinstance(scene, mi.Scene):
+        raise ConvsssError(f"render() takes a mitsuba.Scene of variant {VARIANT!r} (mi.load_file or mi.load_dict), "
+                           f"not {type(scene).__module__}.{type(scene).__name__}")
+    if isinstance(sensor, (int, np.integer)) and not 0 <= int(sensor) < len(scene.sensors()):
+        raise ConvsssError(f"sensor={int(sensor)} is not allowed: the scene has {len(scene.sensors())} sensor(s), "
+                           f"0 to {len(scene.sensors()) - 1}")
+    if isinstance(seed, (int, np.integer)) and not 0 <= int(seed) < 2**32:
+        raise ConvsssError(f"seed={int(seed)} is not allowed: Mitsuba's seeds are 32-bit, 0 to 2^32 - 1")
+    if isinstance(spp, (int, np.integer)) and int(spp) < 0:
+        raise ConvsssError(f"spp={int(spp)} is not allowed: samples per pixel are >= 1 (0: the sensor's sampler's)")
+
+
 def render(scene, *args, **kwargs):
-    """``mi.render(scene, ...)``, raising the integrator's own exception when its ``render`` fails.
+    """``mi.render(scene, ...)``, raising the integrator's own exception when its ``render`` fails, and a one-line
+    :class:`~convsss.errors.ConvsssError` for a call ``mi.render`` would refuse without one (:func:`check_render_call`).
 
     In JIT variants ``mi.render`` runs the integrator inside ``drjit.custom``, which replaces any exception by a
     ``RuntimeError`` "drjit.custom(...): error while performing a custom differentiable operation. (see above)"
     whose ``__cause__`` is the real one (a :class:`~convsss.errors.ConvsssError` with its one-line message).
     """
+    named = dict(zip(("params", "sensor", "integrator", "seed", "seed_grad", "spp"), args)) | kwargs
+    check_render_call(scene, named.get("sensor", 0), named.get("seed", 0), named.get("spp", 0))
     try:
         return mi.render(scene, *args, **kwargs)
     except RuntimeError as error:
