@@ -86,3 +86,21 @@ def test_requested_variant_is_set_and_the_plugin_loads(switching):
 def test_second_variant_in_one_process_is_refused(switching):
     assert switching["second variant"].startswith("ConvsssError: convsss was loaded in Mitsuba variant "
                                                   "'llvm_ad_rgb'")
+
+
+def test_exr_files_are_written_and_read_on_one_cpu(tmp_path):
+    """Issue 30, defect 11: pinned to one CPU (``taskset -c 0``, CPU-pinned containers), Mitsuba's EXR writer and
+    reader hung forever; Dr.Jit's pool keeps two threads."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = ("import numpy as np\nfrom convsss.image import exr_writer, read_image\n"
+            f"exr_writer(np.ones((8, 8, 3)))({str(tmp_path / 'a.exr')!r})\n"
+            f"print(read_image({str(tmp_path / 'a.exr')!r}).shape)\n")
+    one_cpu = min(os.sched_getaffinity(0))
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                            preexec_fn=lambda: os.sched_setaffinity(0, {one_cpu}),
+                            env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")})
+    assert result.returncode == 0 and result.stdout.strip() == "(8, 8, 3)", result.stderr

@@ -18,6 +18,11 @@ SUPPORTED_VARIANTS = ("llvm_ad_rgb", "cuda_ad_rgb")
 DEFAULT_VARIANT = "llvm_ad_rgb"
 
 
+#: Threads Dr.Jit's pool keeps at least: Mitsuba's OpenEXR reader and writer wait on a pool task that never runs
+#: with one (a process pinned to one CPU, ``taskset -c 0``, hung in every EXR write and envmap load: mitsuba3 #21).
+MIN_THREADS = 2
+
+
 def active_variant():
     """The Mitsuba variant set in this process, or None (Mitsuba not imported, or no variant set yet)."""
     mi = sys.modules.get("mitsuba")
@@ -43,6 +48,10 @@ def load_mitsuba(variant=None):
 
     if active != chosen:
         mi.set_variant(chosen)
+        import drjit as dr
+
+        if dr.thread_count() < MIN_THREADS:
+            dr.set_thread_count(MIN_THREADS)
     return mi
 
 
