@@ -141,3 +141,12 @@ def test_a_channel_that_does_not_scatter_returns_nothing(model):
     p = model([1.0, 1.0, 0.0], [0.1, 0.1, 0.5], 1.33)  # blue: sigma_s' = 0
     assert p.total_reflectance[2] == 0.0 and p.total_reflectance[0] > 0
     assert np.all(p([0.0, 1.0, 10.0])[:, 2] == 0.0) and p.energy_within(5.0)[2] == 0.0
+
+
+def test_a_colour_is_a_reflectance_below_one_under_every_model():
+    """Issue 30, defect 14: under the exact total at eta 1.3 (which reaches 1.06 at albedo 1) --color 1,1,1 was
+    accepted; a surface colour is a reflectance, in (0, 1)."""
+    for model in ("exact", *PROFILE_MODELS):
+        with pytest.raises(ConvsssError, match=r"colour 1.0 in channel R is not reachable .* \(0, 1\.0000\)|"
+                                               r"colour 1.0 in channel R is not reachable .* \(0, 0\.\d+\)"):
+            albedo_from_reflectance(model, [1.0, 0.5, 0.5], 1.3)

@@ -151,3 +151,17 @@ def test_effective_area_of_the_dipole_shrinks_with_the_mean_free_path_squared():
     base = DipoleProfile(0.5, 0.01, 1.3)
     scaled = DipoleProfile(5.0, 0.1, 1.3)  # every length 10 times shorter
     np.testing.assert_allclose(scaled.effective_area(), base.effective_area() / 100, rtol=1e-3)
+
+
+def test_a_profile_file_with_too_many_rows_is_refused_before_it_is_read_whole(tmp_path, monkeypatch):
+    """Issue 30, defect 14: `convsss profile plot` of a million rows ran past 150 s; the rows are counted as read."""
+    import convsss.profiles as profiles
+
+    monkeypatch.setattr(profiles, "MAX_PROFILE_ROWS", 50)
+    path = tmp_path / "long.csv"
+    path.write_text("r_mm,R,G,B\n" + "".join(f"{0.01 * (k + 1)},{1.0 / (k + 1)},{1.0 / (k + 1)},{1.0 / (k + 1)}\n"
+                                             for k in range(51)))
+    with pytest.raises(ConvsssError, match="has more than 50 rows"):
+        TabulatedProfile.from_csv(path)
+    path.write_text("".join(path.read_text().splitlines(keepends=True)[:51]))
+    assert TabulatedProfile.from_csv(path) is not None

@@ -209,3 +209,16 @@ def test_a_point_light_inside_a_translucent_object_is_refused(mi):
     assert len(_objects(mi, {**shapes, "lamp": {"type": "point", "position": [1.9, 1.9, 1.9]}})) == 1
     with pytest.raises(ConvsssError, match="light 'spot' is inside"):
         _objects(mi, {**shapes, "spot": {"type": "spot", "to_world": mi.ScalarTransform4f().translate([0, 0, 1])}})
+
+
+@pytest.mark.parametrize("scale", [float("inf"), 1e30])
+def test_an_object_at_infinity_is_refused_without_numpy_warnings(mi, scale):
+    """Issue 30, defects 10 and 14: an infinite translate printed raw numpy warnings, a vertex at 1e30 ended in an
+    OverflowError; both are one line."""
+    skin = convsss.material("skin1")
+    t = mi.ScalarTransform4f()
+    t = t.translate([scale, 0, 0]) if scale == float("inf") else t.scale(scale)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(ConvsssError, match="reaches infinity"):
+            _objects(mi, {"s": translucent({"type": "sphere", "to_world": t}, skin)})

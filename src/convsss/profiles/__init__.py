@@ -29,6 +29,7 @@ The classic dipole keeps the paper's ``R_d`` (the flux ``E_n`` alone, with ``alp
 """
 
 import csv
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +38,9 @@ from scipy.interpolate import PchipInterpolator
 from ..errors import ConvsssError
 from ..fresnel import diffuse_fresnel_reflectance
 
+#: The most data rows a profile file may have (a plot or a render of a million took minutes; 10 000 resolve any
+#: profile to well below its noise).
+MAX_PROFILE_ROWS = 100_000
 CHANNELS = "RGB"
 #: :meth:`Profile.effective_area` cuts the profile's peak at the radius holding this fraction of its energy.
 PEAK_ENERGY = 0.02
@@ -315,7 +319,10 @@ class TabulatedProfile(Profile):
             raise ConvsssError(f"profile file {str(path)!r} does not exist")
         try:
             with path.open(newline="", encoding="utf-8") as f:
-                rows = [row for row in csv.reader(f) if row]
+                rows = [row for row in itertools.islice(csv.reader(f), MAX_PROFILE_ROWS + 2) if row]
+            if len(rows) > MAX_PROFILE_ROWS + 1:
+                raise ConvsssError(f"profile file {str(path)!r} has more than {MAX_PROFILE_ROWS} rows: a radial "
+                                   "profile needs a few thousand (resample it, e.g. every 1 % in r)")
         except (UnicodeDecodeError, csv.Error) as e:
             raise ConvsssError(f"profile file {str(path)!r} is not a CSV (text with the columns r_mm, R, G, B): "
                                f"{' '.join(str(e).split())}") from None

@@ -192,7 +192,7 @@ def albedo_from_reflectance(model, reflectance, eta):
     eta = check_eta(eta)
     target = np.broadcast_to(np.asarray(reflectance, dtype=np.float64), (3,))
     low, high = ALBEDO_RANGE
-    top = model_total(model, high, eta)
+    top = min(model_total(model, high, eta), 1.0)  # a colour is a reflectance: below 1 whatever the model's total
     out = np.empty(3)
     for c, value in enumerate(target):
         if not np.isfinite(value) or value <= 0 or value >= top:

@@ -493,7 +493,7 @@ def sample_count(area_mm2, cell_mm, sample_density, profile_area_mm2=math.inf, p
     footprint wider than its profile gets few samples per profile from the first rule alone)."""
     by_pixel = sample_density * area_mm2 / cell_mm**2
     by_profile = profile_samples * area_mm2 / profile_area_mm2 if profile_samples > 0 else 0.0
-    return max(64, math.ceil(max(by_pixel, by_profile)))
+    return max(64, math.ceil(min(max(by_pixel, by_profile), 2.0**62)))  # capped: the plan refuses what cannot fit
 
 
 def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=0, stage=None, oblique=False,

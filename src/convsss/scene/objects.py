@@ -363,7 +363,8 @@ def world_bbox(shape, to_world):
     low, high = np.array(list(box.min), dtype=np.float64), np.array(list(box.max), dtype=np.float64)
     corners = np.array([[x, y, z, 1.0] for x in (low[0], high[0]) for y in (low[1], high[1])
                         for z in (low[2], high[2])])
-    mapped = corners @ to_world.T
+    with np.errstate(all="ignore"):  # a transform at infinity gives inf or NaN corners: refused by the caller
+        mapped = corners @ to_world.T
     return np.array([mapped[:, :3].min(axis=0), mapped[:, :3].max(axis=0)])
 
 
@@ -435,6 +436,9 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
                                 to_world=to_world, orientation=surfaces[index][0], closed=surfaces[index][1],
                                 bbox_mm=world_bbox(shape, to_world) * unit_mm,
                                 area_mm2=world_area(shape, to_world) * unit_mm**2)
+        if not (np.all(np.isfinite(obj.bbox_mm)) and np.isfinite(obj.area_mm2)):
+            raise ConvsssError(f"translucent shape {name!r} reaches infinity (a vertex or a transform that is not "
+                               "finite, or too large for float32)")
         if not obj.area_mm2 > 0:
             raise ConvsssError(f"translucent shape {name!r} has no surface area (all its faces are degenerate)")
         _check_span(obj, unit_mm)
