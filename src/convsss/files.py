@@ -32,7 +32,8 @@ def check_outputs(outputs, inputs=()):
     ------
     ConvsssError
         When an output is an input (the same resolved path, or the same file under another name), is named twice,
-        is an existing folder, or lies in a folder that neither exists nor can be created, or cannot be written.
+        is an existing folder, or lies in a folder that neither exists nor can be created, or cannot be written, or
+        its name is not valid UTF-8.
 
     Examples
     --------
@@ -43,6 +44,11 @@ def check_outputs(outputs, inputs=()):
     """
     outputs = [Path(p) for p in outputs]
     for out in outputs:
+        try:
+            str(out).encode("utf-8")
+        except UnicodeEncodeError:
+            raise ConvsssError(f"output {str(out).encode('utf-8', 'backslashreplace').decode()!r} is not a valid "
+                               "UTF-8 name (Mitsuba writes UTF-8 paths only): choose another output path") from None
         for source in map(Path, inputs):
             if _same_file(out, source):
                 raise ConvsssError(f"output {str(out)!r} is an input of this command ({str(source)!r}): "

@@ -586,3 +586,64 @@ def test_the_example_scene_renders_with_convsss_and_volpathmis(tmp_path):
         result = run(command, example, "-o", out, "--width", 40, "--height", 30, "--spp", 2, "--no-progress")
         assert result.exit_code == 0, result.output
         assert read_image(out.with_suffix(".exr")).max() > 0
+
+
+# ---- Sensors, ports and names (issue 30: friction and defect 10) -----------------------------------------------
+
+@pytest.fixture(scope="module")
+def two_sensors(scene_file, tmp_path_factory):
+    """The test scene with a second camera, 16 x 8, looking from the other side."""
+    text = scene_file.read_text()
+    start = text.index("<sensor")
+    sensor = text[start:text.index("</sensor>") + len("</sensor>")]
+    second = re.sub(r'name="width" value="\d+"', 'name="width" value="16"', sensor)
+    second = re.sub(r'name="height" value="\d+"', 'name="height" value="8"', second)
+    path = tmp_path_factory.mktemp("sensors") / "two.xml"
+    path.write_text(text.replace(sensor, sensor + second))
+    return path
+
+
+def test_sensor_picks_a_camera_and_the_first_is_named(two_sensors, tmp_path):
+    result = run("render", two_sensors, "-o", tmp_path / "a", "--spp", 1, "--no-progress", "--stats",
+                 tmp_path / "a.json")
+    assert result.exit_code == 0, result.output
+    assert "the scene has 2 sensors; rendering sensor 0 (--sensor picks another)" in result.output
+    result = run("render", two_sensors, "-o", tmp_path / "b", "--spp", 1, "--no-progress", "--sensor", 1)
+    assert result.exit_code == 0, result.output
+    from convsss.image import read_image
+
+    assert read_image(tmp_path / "b.exr").shape[:2] == (8, 16) != read_image(tmp_path / "a.exr").shape[:2]
+    assert json.loads((tmp_path / "a.json").read_text())["sensor"] == 0
+    result = run("reference", two_sensors, "-o", tmp_path / "r", "--spp", 1, "--no-progress", "--sensor", 1)
+    assert result.exit_code == 0, result.output
+    assert read_image(tmp_path / "r.exr").shape[:2] == (8, 16)
+    result = run("render", two_sensors, "-o", tmp_path / "c", "--no-progress", "--sensor", 2)
+    assert result.exit_code == 2 and "--sensor 2 is not allowed: the scene has 2 sensor(s), 0 to 1" in result.output
+
+
+def test_edit_on_a_busy_port_is_refused_before_the_first_render(tmp_path):
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        result = run("edit", "--mesh", "bunny", "--material", "marble", "--size-mm", 20, "--width", 16, "--height", 16,
+                     "--port", port, "--no-open")
+    assert result.exit_code == 2, result.output
+    assert f"cannot serve the editor on 127.0.0.1 port {port}" in result.output
+    assert "rendering the first preview" not in result.output
+
+
+def test_an_output_name_that_is_not_utf8_is_refused_before_any_work(tmp_path):
+    name = os.fsdecode(bytes(tmp_path / "x") + b"\xff")  # what Python makes of a non-UTF-8 argument
+    result = run("render", "--mesh", "bunny", "--material", "marble", "--size-mm", 20, "-o", name, "--no-progress")
+    assert result.exit_code == 2 and "is not a valid UTF-8 name" in result.output, result.output
+    assert not any(tmp_path.iterdir())
+
+
+def test_edit_help_states_the_defaults_it_uses():
+    """Issue 30: `edit --help` said 800 pixels and 16 spp with --mesh; the editor previews 256² at 1 spp."""
+    text = " ".join(run("edit", "--help").output.split())
+    assert text.count("default 256 (the scene's film is resized)") == 2 and "(default 1)" in text
+    assert "800 with --mesh" not in text

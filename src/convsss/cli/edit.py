@@ -5,11 +5,11 @@ import click
 
 from ..errors import ConvsssError
 from .main import cli
-from .options import integrator_options, load_source, render_params, scene_source_options
+from .options import integrator_options, load_source, pick_sensor, render_params, scene_source_options
 
 
 @cli.command()
-@scene_source_options
+@scene_source_options(preview=True)
 @click.option("--object", "target", help="The translucent object to edit: its shape id, or its index among those the "
                                          "camera sees. [default: the first]")
 @click.option("--port", type=click.IntRange(0, 65535), default=0, show_default=True,
@@ -18,7 +18,7 @@ from .options import integrator_options, load_source, render_params, scene_sourc
               help="Open the page in the default browser.")
 @integrator_options
 def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height, spp,
-         seed, target, port, open_browser, **integrator):
+         sensor, seed, target, port, open_browser, **integrator):
     """Edit one translucent object's material in a web page served on 127.0.0.1: the render, a preset picker,
     sliders for colour and mean free path, sigma_s' and sigma_a per channel, eta (dielectric boundaries), the
     multiscale transport's accuracy, the profile model, the profile's plot and per-stage seconds.
@@ -46,9 +46,16 @@ def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, f
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width or 256, height or 256, color,
                         mfp_mm, eta, color_model)
     base = scene_parameters(scene) or defaults
-    click.echo("rendering the first preview...", err=True)
-    session = EditSession(scene, render_params(integrator, base), target=target, spp=spp or 1, seed=seed)
-    server = EditorServer(session, "127.0.0.1", port)
+    camera = pick_sensor(scene, sensor)
+    server = EditorServer(None, "127.0.0.1", port)  # the port is taken (or refused) before the first render
+    try:
+        click.echo("rendering the first preview...", err=True)
+        server.session = EditSession(scene, render_params(integrator, base), target=target, spp=spp or 1, seed=seed,
+                                     sensor=camera)
+    except BaseException:
+        server.server_close()
+        raise
+    session = server.session
     if len(session.objects) > 1:
         click.echo(f"editing {session.target.name!r}, one of {len(session.objects)} translucent objects "
                    "(--object picks another)", err=True)

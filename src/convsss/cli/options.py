@@ -120,9 +120,14 @@ def warn_color_model(color_model, profile, total):
                       f"give --color-model {rendered} to match the colour", ColorModelWarning, stacklevel=2)
 
 
-def scene_source_options(func):
+def scene_source_options(func=None, *, preview=False):
     """The options that say what to render: a scene file, or ``--mesh``, ``--material`` (or ``--color/--mfp-mm``,
-    :func:`color_options`) and ``--size-mm`` (shared by commands)."""
+    :func:`color_options`) and ``--size-mm``, the film size, spp, seed and sensor (shared by commands); ``preview``:
+    the editor's defaults (a 256² preview at 1 spp, whatever the scene's film)."""
+    if func is None:
+        return lambda f: scene_source_options(f, preview=preview)
+    size = "default 256 (the scene's film is resized)" if preview else "default: the scene's; 800 with --mesh"
+    spp = "default 1" if preview else "default: the scene's sampler; 16 with --mesh"
     options = [
         click.argument("scene_file", required=False, type=click.Path(dir_okay=False)),
         click.option("--mesh", type=click.Path(dir_okay=False),
@@ -137,15 +142,33 @@ def scene_source_options(func):
                      show_default=True,
                      help="With --mesh: the object's surface: a smooth or rough dielectric with the material's index "
                           "of refraction, or index-matched (null)."),
-        click.option("--width", type=int, help="Film width in pixels (default: the scene's; 800 with --mesh)."),
-        click.option("--height", type=int, help="Film height in pixels (default: the scene's; 800 with --mesh)."),
-        click.option("--spp", type=int, help="Samples per pixel (default: the scene's sampler; 16 with --mesh)."),
+        click.option("--width", type=int, help=f"Film width in pixels ({size})."),
+        click.option("--height", type=int, help=f"Film height in pixels ({size})."),
+        click.option("--spp", type=int, help=f"Samples per pixel ({spp})."),
+        click.option("--sensor", type=click.IntRange(0), default=None,
+                     help="Which of the scene's sensors to render, from 0 (default: the first; a note names the "
+                          "others)."),
         click.option("--seed", type=SEED, default=0, show_default=True,
                      help="Random seed, 0 to 2^32 - 1: the same seed gives the same image (render: bit for bit, "
                           "whatever the thread count; reference: up to Mitsuba's float rounding, about 1e-7 "
                           "relative)."),
     ]
     return _decorate(func, options)
+
+
+def pick_sensor(scene, sensor):
+    """The scene's sensor number ``sensor`` (None: the first, with a note when there are others), or a one-line
+    error."""
+    sensors = scene.sensors()
+    if sensor is None:
+        if len(sensors) > 1:
+            click.echo(f"note: the scene has {len(sensors)} sensors; rendering sensor 0 (--sensor picks another)",
+                       err=True)
+        return sensors[0]
+    if sensor >= len(sensors):
+        raise ConvsssError(f"--sensor {sensor} is not allowed: the scene has {len(sensors)} sensor(s), 0 to "
+                           f"{len(sensors) - 1}")
+    return sensors[sensor]
 
 
 def source_inputs(scene_file, mesh):

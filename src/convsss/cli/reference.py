@@ -14,6 +14,7 @@ from .options import (
     exposure_anchor,
     load_source,
     output_paths,
+    pick_sensor,
     scene_source_options,
     source_inputs,
     tonemap_options,
@@ -33,7 +34,7 @@ from .options import (
 @tonemap_options
 @PROGRESS
 def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height,
-              spp, seed, output, pass_spp, strict, tonemap, key, exposure, exposure_from, progress):
+              spp, sensor, seed, output, pass_spp, strict, tonemap, key, exposure, exposure_from, progress):
     """Render SCENE_FILE with Mitsuba's volumetric path tracer volpathmis: the ground truth of `convsss render`.
 
     Russian roulette is off and paths are unbounded. --spp is the total (default: the scene's sampler), rendered in
@@ -61,7 +62,8 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
     anchor = exposure_anchor(exposure_from, tonemap)
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
                         color_model)
-    total_spp = spp if spp is not None else (16 if scene_file is None else scene.sensors()[0].sampler().sample_count())
+    camera = pick_sensor(scene, sensor)
+    total_spp = spp if spp is not None else (16 if scene_file is None else camera.sampler().sample_count())
     bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress)
 
     def save(image, done, index, n_passes):
@@ -78,7 +80,7 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
         with warnings.catch_warnings():
             if strict:
                 warnings.simplefilter("error", BlackPassWarning)
-            render_reference(scene, total_spp, pass_spp, seed, save)
+            render_reference(scene, total_spp, pass_spp, seed, save, sensor=camera)
     except BlackPassWarning as black:
         bar.close()
         click.echo(f"error: {black}", err=True)

@@ -23,6 +23,7 @@ from .options import (
     integrator_options,
     load_source,
     output_paths,
+    pick_sensor,
     render_params,
     scene_source_options,
     source_inputs,
@@ -72,7 +73,7 @@ class StageProgress:
                    "count, and the object's size in mean free paths and diffusion lengths.")
 @PROGRESS
 def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height, spp,
-           seed, output, write_mask, tonemap, key, exposure, exposure_from, stats_path, progress, **integrator):
+           sensor, seed, output, write_mask, tonemap, key, exposure, exposure_from, stats_path, progress, **integrator):
     """Render SCENE_FILE (a Mitsuba 3 XML scene) with the convsss integrator, whatever integrator the file names.
 
     A translucent object is a shape with an interior 'homogeneous' medium (or a 'convsss_medium' naming a preset
@@ -128,8 +129,9 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         seconds["scene_load"] = time.perf_counter() - t
         integ = mi.load_dict(params.integrator_dict())
         integ.progress = bar
-        spp_used = spp if spp is not None else (16 if quick else scene.sensors()[0].sampler().sample_count())
-        film = np.array(integ.render(scene, scene.sensors()[0], seed=seed, spp=spp_used), dtype=np.float64)
+        camera = pick_sensor(scene, sensor)
+        spp_used = spp if spp is not None else (16 if quick else camera.sampler().sample_count())
+        film = np.array(integ.render(scene, camera, seed=seed, spp=spp_used), dtype=np.float64)
         aovs = integ.aov_names()
         image = np.concatenate([film[..., :3], film[..., film.shape[2] - len(aovs):]], axis=2)  # RGB(A) + AOVs
         channels = ["R", "G", "B", *aovs]
@@ -142,7 +144,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
                  "quick": {"mesh": str(mesh), "material": material, "color": color, "mfp_mm": mfp_mm, "eta": eta,
                            "color_model": color_model, "size_mm": size_mm, "floor": floor,
                            "boundary": boundary} if quick else None,
-                 "seed": seed, "spp": spp_used,
+                 "seed": seed, "spp": spp_used, "sensor": scene.sensors().index(camera),
                  "outputs": {"exr": str(exr), "png": str(png), "mask": str(mask_png) if write_mask else None},
                  "aovs": aovs,
                  "tonemap": {"method": tonemap, "key": key, "exposure": exposure, "exposure_from": exposure_from},

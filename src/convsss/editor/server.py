@@ -146,7 +146,11 @@ class EditorServer(socketserver.ThreadingMixIn, socketserver.TCPServer):
 
         self.address_family = socket.AF_INET6 if ":" in check_loopback(host) else socket.AF_INET
         self.session = session
-        super().__init__((host, int(port)), EditorHandler)
+        try:
+            super().__init__((host, int(port)), EditorHandler)
+        except OSError as error:
+            raise ConvsssError(f"cannot serve the editor on {host} port {port}: {error.strerror or error} (--port 0 "
+                               "picks a free one)") from None
 
     @property
     def url(self):

@@ -105,6 +105,8 @@ class EditSession:
     spp : int, optional
         Samples per pixel of the preview (default: the scene's sampler).
     seed : int
+    sensor : mitsuba.Sensor, optional
+        The sensor previewed (default: the scene's first).
 
     Attributes
     ----------
@@ -115,12 +117,13 @@ class EditSession:
     last : dict                the last render: ``rebuilt`` ("prepare" or "transport") and ``seconds`` per stage
     """
 
-    def __init__(self, scene, params=None, target=None, spp=None, seed=0):
+    def __init__(self, scene, params=None, target=None, spp=None, seed=0, sensor=None):
         from ..scene.integrator import register, scene_parameters
         from ..scene.params import RenderParams
 
         self.mi = register()
-        self.scene, self.sensor, self.seed = scene, scene.sensors()[0], int(seed)
+        self.scene, self.seed = scene, int(seed)
+        self.sensor = scene.sensors()[0] if sensor is None else sensor
         self.spp = int(spp) if spp else int(self.sensor.sampler().sample_count())
         if params is None:
             params = RenderParams(**(scene_parameters(scene) or {}))

@@ -57,7 +57,7 @@ def reference_integrator():
     return mi.load_dict({"type": "volpathmis", "max_depth": -1, "rr_depth": NO_RUSSIAN_ROULETTE})
 
 
-def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
+def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None, sensor=0):
     """Render ``scene`` with ``spp`` samples per pixel of ``volpathmis``, in passes; returns the mean (H, W, 3).
 
     Parameters
@@ -73,6 +73,8 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
         relative).
     on_pass : callable, optional
         ``on_pass(mean_image, spp_done, pass_index, n_passes)`` after each pass (e.g. to save it).
+    sensor : int or mitsuba.Sensor
+        The sensor rendered (default: the first).
 
     Returns
     -------
@@ -91,13 +93,13 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None):
     mi = load_mitsuba()
     integrator = reference_integrator()
     n_passes = math.ceil(spp / pass_spp)
-    objects = translucent_pixels(scene)
+    objects = translucent_pixels(scene, sensor)
     total, done, warned = None, 0, False
     for k in range(n_passes):
         this = min(pass_spp, spp - done)
         with mitsuba_render(integrator):  # Ctrl-C: no partial pass is averaged in
-            image = np.array(mi.render(scene, integrator=integrator, spp=this, seed=(seed * 1_000_003 + k) % 2**32),
-                             dtype=np.float64)[..., :3]
+            image = np.array(mi.render(scene, sensor=sensor, integrator=integrator, spp=this,
+                                       seed=(seed * 1_000_003 + k) % 2**32), dtype=np.float64)[..., :3]
         if not warned and objects.any() and not np.any(image[objects] > 0):
             warned = True
             warnings.warn(f"volpathmis pass {k + 1} of {n_passes} is black over all {int(objects.sum())} pixels "
