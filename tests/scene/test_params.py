@@ -51,3 +51,20 @@ def test_integrator_documents_every_parameter_from_its_declaration():
     for name in RenderParams.names():
         assert f" * - {name}\n" in doc, name
     assert "(Default: 8)" in doc and "(Default: 0.05)" in doc
+
+
+def test_a_parameter_of_another_transport_warns_that_it_has_no_effect(mi):
+    """Issue 31: the README's `{"type": "convsss", "layers": 8, "downsample": 0.5}` rendered with the multiscale
+    transport, which ignores both, without a word."""
+    import warnings
+
+    from convsss.scene.integrator import register
+    from convsss.scene.params import IgnoredParameterWarning
+
+    register()
+    with pytest.warns(IgnoredParameterWarning, match=r"downsample \(convolution transport\), layers \(convolution "
+                                                      r"transport\): not a parameter of the multiscale transport"):
+        mi.load_dict({"type": "convsss", "layers": 8, "downsample": 0.5})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", IgnoredParameterWarning)
+        mi.load_dict({"type": "convsss", "transport": "convolution", "layers": 8, "downsample": 0.5})

@@ -77,8 +77,8 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
     """Render SCENE_FILE (a Mitsuba 3 XML scene) with the convsss integrator, whatever integrator the file names.
 
     A translucent object is a shape with an interior 'homogeneous' medium (or a 'convsss_medium' naming a preset
-    or a colour, README) and a null, dielectric or roughdielectric BSDF; scene units are mm unless --unit-mm says
-    otherwise. Without a scene file,
+    or a colour, docs/guide/scene-files.md) and a null, dielectric or roughdielectric BSDF; scene units are mm
+    unless --unit-mm says otherwise. Without a scene file,
     --mesh/--material/--size-mm build a scene around the mesh (with --specular phong, the paper's highlight, unless
     given); --color/--mfp-mm give the material by its colour and mean free path instead of a preset.
 

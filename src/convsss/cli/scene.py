@@ -68,7 +68,8 @@ def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boun
     largest value in scale, per scene unit); the scene has a camera, a key light, a back light and Mitsuba's
     volpathmis without Russian roulette as integrator, so it renders as it is with plain Mitsuba (ground truth),
     with `convsss render SCENE` and with `convsss reference SCENE`. A colour is written as the coefficients it
-    inverts to; to name a preset or a colour in a file you write, use <medium type="convsss_medium"> (README).
+    inverts to; to name a preset or a colour in a file you write, use <medium type="convsss_medium">
+    (docs/guide/scene-files.md).
     With -o the mesh's path is written relative to the output's folder (keep them together when moving them);
     printed, it is absolute.
 

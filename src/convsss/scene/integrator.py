@@ -21,6 +21,7 @@ Per-stage seconds and everything a user needs to judge the run are in :attr:`Con
 
 import functools
 import threading
+import warnings
 from dataclasses import dataclass, field
 
 import drjit as dr
@@ -36,7 +37,14 @@ from .camera import check_camera, first_hits, sensor_frame
 from .irradiance import keeps_irradiance
 from .lighting import light_samples
 from .objects import find_translucent_objects
-from .params import RenderParams, aov_channels, parse_aovs, plugin_parameters
+from .params import (
+    IgnoredParameterWarning,
+    RenderParams,
+    aov_channels,
+    integrator_parameters,
+    parse_aovs,
+    plugin_parameters,
+)
 from .passes import build_transports, translucent_passes
 from .plan import check_film, plan_samples
 from .presets import register_medium
@@ -130,6 +138,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     def __init__(self, props):
         super().__init__(props)
         self.params = RenderParams.from_properties(props)
+        if self.params.ignored():
+            owners = {p.name: owner for p, owner in integrator_parameters()}
+            warnings.warn(f"{', '.join(f'{n} ({owners[n]} transport)' for n in self.params.ignored())}: not a "
+                          f"parameter of the {self.params.transport} transport this integrator renders with, so it "
+                          f"has no effect (set transport={owners[self.params.ignored()[0]]!r} to use it)",
+                          IgnoredParameterWarning, stacklevel=2)
         self.samples_per_pass = int(props["samples_per_pass"]) if "samples_per_pass" in props else -1
         self.stats = {}
         #: Optional callable ``progress(stage)`` told when a stage starts (the command line's progress display).

@@ -156,6 +156,10 @@ def plugin_parameters():
     return "\n".join(lines)
 
 
+class IgnoredParameterWarning(UserWarning):
+    """An integrator parameter belongs to another transport than the one rendering: it has no effect."""
+
+
 class RenderParams:
     """Every ``convsss`` integrator parameter: the renderer's and the transports', each checked, defaults filled in.
 
@@ -188,6 +192,11 @@ class RenderParams:
         """What the profiles and their gains carry (:data:`~convsss.profiles.incidence.ORDERS`): ``multiple`` where
         the shader traces single scattering, else ``all``."""
         return "multiple" if self._renderer["single_scattering"] == "traced" else "all"
+
+    def ignored(self):
+        """The options given that belong to another transport than the chosen one (kept, and ignored by it)."""
+        own = {p.name for p in self.transport_class().parameters if p.exposed}
+        return sorted(set(self._options) - own)
 
     def transport_class(self):
         from ..transport import TRANSPORTS
