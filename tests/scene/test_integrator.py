@@ -342,3 +342,23 @@ def test_api_misuse_is_one_line(mi, sphere_scene, call, message):
     scene = mi.load_dict(sphere_scene(res=8, spp=1))
     with pytest.raises(convsss.ConvsssError, match=message):
         call(render, scene)
+
+
+def test_mi_traverse_exposes_and_sets_the_numeric_parameters(mi, sphere_scene):
+    """Issue 30 (friction): ``mi.traverse(integrator)`` returned nothing. The numeric parameters are there, an update
+    is checked as at construction, and the next render uses it."""
+    scene = mi.load_dict(sphere_scene(res=8, spp=1))
+    integrator = scene.integrator()
+    params = mi.traverse(integrator)
+    assert {"accuracy", "sample_density", "irradiance_samples", "unit_mm"} <= set(params.keys())
+    params["accuracy"] = 0.03
+    params["irradiance_samples"] = 8
+    params.update()
+    assert integrator.params.accuracy == 0.03 and integrator.params.irradiance_samples == 8
+    integrator.render(scene, scene.sensors()[0])
+    assert integrator.stats["parameters"]["accuracy"] == 0.03
+    params["sample_density"] = -1.0
+    with pytest.raises(convsss.ConvsssError, match="sample_density=-1.0 is not allowed"):
+        params.update()
+    assert integrator.params.sample_density == 4.0
+    assert "integrator.accuracy" in mi.traverse(scene).keys()

@@ -158,6 +158,28 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     def to_string(self):
         return f"ConvsssIntegrator[{', '.join(f'{k}={v!r}' for k, v in self.params.to_dict().items())}]"
 
+    def traverse(self, callback):
+        """Mitsuba's parameter traversal (``mi.traverse(integrator)``): every numeric parameter of the renderer and
+        of its transport (``accuracy``, ``sample_density``, ``layers``, ...), as a one-lane ``mi.Float`` or
+        ``mi.Int32`` that ``params["accuracy"] = 0.003; params.update()`` sets (checked as at construction; the next
+        render uses it). Names, models and choices are set with the integrator's dictionary."""
+        self._traversed = {}
+        for name, value in self.params.to_dict().items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                continue
+            self._traversed[name] = (mi.Int32 if isinstance(value, int) else mi.Float)(value)
+            callback.put(name, self._traversed[name], mi.ParamFlags.NonDifferentiable)
+
+    def parameters_changed(self, keys=()):
+        """After ``params.update()``: the changed numeric parameters, checked, become the integrator's."""
+        values = self.params.to_dict()
+        for name in keys:
+            if name in getattr(self, "_traversed", {}):
+                number = self._traversed[name].numpy().reshape(-1)[0]
+                # float32 lanes: the shortest decimal that reads back as the same float32 (0.03, not 0.0299999993)
+                values[name] = int(number) if isinstance(values[name], int) else float(str(np.float32(number)))
+        self.params = RenderParams(**values)
+
     def aov_names(self):
         """The film channels of the ``aovs`` parameter (e.g. ``exitance.R``), Mitsuba's AOV mechanism (:mod:`.aovs`)."""
         return aov_channels(parse_aovs(self.params.aovs))
