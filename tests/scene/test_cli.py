@@ -647,3 +647,20 @@ def test_edit_help_states_the_defaults_it_uses():
     text = " ".join(run("edit", "--help").output.split())
     assert text.count("default 256 (the scene's film is resized)") == 2 and "(default 1)" in text
     assert "800 with --mesh" not in text
+
+
+def test_progress_is_plain_lines_when_stderr_is_no_terminal(scene_file, tmp_path):
+    """Issue 30 (friction): logs of render and reference, stderr piped, have one line per stage or pass and no
+    carriage return."""
+    env = {**os.environ, "PYTHONPATH": _src_path()}
+    for args in (["render", str(scene_file), "-o", str(tmp_path / "a"), "--spp", "1", "--width", "16", "--height",
+                  "16"],
+                 ["reference", str(scene_file), "-o", str(tmp_path / "b"), "--spp", "2", "--pass-spp", "1",
+                  "--width", "16", "--height", "16"]):
+        result = subprocess.run([sys.executable, "-m", "convsss", *args], capture_output=True, text=True,
+                                timeout=300, env=env)
+        assert result.returncode == 0, result.stderr
+        assert "\r" not in result.stderr
+    assert "render: shading (7/8) at" in subprocess.run(
+        [sys.executable, "-m", "convsss", "render", str(scene_file), "-o", str(tmp_path / "c"), "--spp", "1",
+         "--width", "16", "--height", "16"], capture_output=True, text=True, timeout=300, env=env).stderr

@@ -1,6 +1,7 @@
 """``convsss reference``: the same scene with Mitsuba's ``volpathmis`` (ground truth), in passes that are each saved."""
 
 import json
+import sys
 import time
 import warnings
 
@@ -64,7 +65,10 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
                         color_model)
     camera = pick_sensor(scene, sensor)
     total_spp = spp if spp is not None else (16 if scene_file is None else camera.sampler().sample_count())
-    bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress)
+    lines = progress and not sys.stderr.isatty()  # a log: one line a pass, no carriage returns
+    bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress or lines)
+    if lines:
+        click.echo(f"volpathmis: {total_spp} spp in passes of {pass_spp}", err=True)
 
     def save(image, done, index, n_passes):
         text = json.dumps({
@@ -75,6 +79,9 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
         write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure, anchor=anchor),
                      info: text_writer(text)})
         bar.update(done - bar.n)
+        if lines:
+            click.echo(f"volpathmis: {done}/{total_spp} spp (pass {index + 1}/{n_passes}) at "
+                       f"{time.perf_counter() - start:.1f} s", err=True)
 
     try:
         with warnings.catch_warnings():

@@ -8,6 +8,7 @@ profile).
 """
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -34,13 +35,17 @@ from .options import (
 STAGES = ("scene_load", "samples", "irradiance", "indirect", "transport", "screen", "shading", "write")
 
 class StageProgress:
-    """A tqdm bar over the render's stages (stderr); ``__call__(stage)`` moves it on."""
+    """The render's stages on stderr: a tqdm bar on a terminal, else one plain line per stage as it starts (a log
+    without carriage returns); ``__call__(stage)`` moves it on."""
 
-    def __init__(self, enabled=True):
+    def __init__(self, enabled=True, terminal=None):
         from tqdm import tqdm
 
-        self.bar = tqdm(total=len(STAGES), desc="render", unit="stage", disable=not enabled, leave=True,
-                        bar_format="{desc}: {n_fmt}/{total_fmt} stages |{bar:20}| {elapsed} {postfix}")
+        terminal = sys.stderr.isatty() if terminal is None else terminal
+        self.lines = enabled and not terminal
+        self.start = time.perf_counter()
+        self.bar = tqdm(total=len(STAGES), desc="render", unit="stage", disable=not enabled or self.lines,
+                        leave=True, bar_format="{desc}: {n_fmt}/{total_fmt} stages |{bar:20}| {elapsed} {postfix}")
         self.done = set()
 
     def __call__(self, stage):
@@ -49,6 +54,11 @@ class StageProgress:
             self.done.add(stage)
             self.bar.n = min(len(self.done), len(STAGES))
             self.bar.refresh()
+            if self.lines:
+                self._line(f"{stage} ({len(self.done)}/{len(STAGES)})")
+
+    def _line(self, text):
+        click.echo(f"render: {text} at {time.perf_counter() - self.start:.1f} s", err=True)
 
     def close(self, failed=False):
         """Finish the bar: all stages done, or left where it stopped, marked ``failed``."""
@@ -56,6 +66,8 @@ class StageProgress:
             self.bar.n = len(STAGES)
         self.bar.set_postfix_str("failed" if failed else "done")
         self.bar.close()
+        if self.lines:
+            self._line("failed" if failed else "done")
 
 
 @cli.command()
