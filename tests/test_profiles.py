@@ -165,3 +165,10 @@ def test_a_profile_file_with_too_many_rows_is_refused_before_it_is_read_whole(tm
         TabulatedProfile.from_csv(path)
     path.write_text("".join(path.read_text().splitlines(keepends=True)[:51]))
     assert TabulatedProfile.from_csv(path) is not None
+
+
+def test_a_radius_beyond_a_kilometre_is_refused():
+    """Issue 30, defect 10: a profile CSV with a radius of 1e300 mm ended `convsss profile plot` in a matplotlib
+    traceback."""
+    with pytest.raises(ConvsssError, match=r"radius r=1e\+300 is not allowed: radii are in mm, finite, from 0"):
+        TabulatedProfile([0.1, 1e300], [[1.0] * 3, [1e-3] * 3])

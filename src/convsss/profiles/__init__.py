@@ -41,6 +41,9 @@ from ..fresnel import diffuse_fresnel_reflectance
 #: The most data rows a profile file may have (a plot or a render of a million took minutes; 10 000 resolve any
 #: profile to well below its noise).
 MAX_PROFILE_ROWS = 100_000
+#: The largest radius a tabulated profile may reach, in mm (a kilometre: no medium diffuses light farther; 1e300
+#: overflowed the energy integrals and the plots).
+MAX_RADIUS_MM = 1e6
 CHANNELS = "RGB"
 #: :meth:`Profile.effective_area` cuts the profile's peak at the radius holding this fraction of its energy.
 PEAK_ENERGY = 0.02
@@ -269,10 +272,10 @@ class TabulatedProfile(Profile):
             raise ConvsssError(f"tabulated profile needs at least 2 radii in a 1-D list, got shape {r.shape}")
         if v.shape != (len(r), 3):
             raise ConvsssError(f"tabulated profile values have shape {v.shape}: expected ({len(r)}, 3) or ({len(r)},)")
-        bad = ~np.isfinite(r) | (r < 0)
+        bad = ~np.isfinite(r) | (r < 0) | (r > MAX_RADIUS_MM)
         if bad.any():
             raise ConvsssError(f"tabulated profile radius r={float(r[bad][0])!r} is not allowed: "
-                               "radii must be finite and >= 0")
+                               f"radii are in mm, finite, from 0 to {MAX_RADIUS_MM:g}")
         step = np.diff(r)
         if np.any(step <= 0):
             k = int(np.argmax(step <= 0))
