@@ -4,14 +4,19 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
 # ---
 
 # %% [markdown]
 # # convsss from Python, as a Mitsuba 3 user works
 #
-# A notebook in jupytext's percent format: open it in Jupyter with jupytext (`jupytext --to ipynb
-# examples/notebook.py`), or run it as a script (`python examples/notebook.py`); the test suite runs it
-# (`tests/test_examples.py`). Images and plots go to `$CONVSSS_EXAMPLE_OUT` (default `out/notebook`).
+# Open `examples/notebook.ipynb` in Jupyter (images inline), or run this file, its source in jupytext's percent
+# format, as a script (`python examples/notebook.py`); the test suite runs it and checks that the `.ipynb` holds the
+# same cells (`tests/test_examples.py`; after an edit, `.venv/bin/jupytext --to ipynb examples/notebook.py`). Images
+# and plots go to `$CONVSSS_EXAMPLE_OUT` (default `out/notebook`).
 #
 # It registers the integrator, builds a scene dictionary with a translucent object (a material preset named in
 # the scene, `convsss_medium`), an opaque floor, an area light and an environment map, renders it with AOVs, changes
@@ -30,6 +35,17 @@ mi = convsss.register()  # the active Mitsuba variant if convsss supports it, el
 OUT = Path(os.environ.get("CONVSSS_EXAMPLE_OUT", "out/notebook"))
 OUT.mkdir(parents=True, exist_ok=True)
 SIZE = int(os.environ.get("CONVSSS_EXAMPLE_SIZE", "128"))  # film width and height in pixels
+
+
+def show(path):
+    """The image at ``path`` inline in Jupyter; nothing when run as a script."""
+    try:
+        from IPython import get_ipython
+        from IPython.display import Image, display
+    except ImportError:
+        return
+    if get_ipython() is not None:
+        display(Image(filename=str(path)))
 
 # %% [markdown]
 # ## A scene dictionary
@@ -87,6 +103,7 @@ mask = channels["mask.Y"] > 0.5
 exitance = np.stack([channels[f"exitance.{c}"] for c in "RGB"], axis=-1)
 mi.util.write_bitmap(str(OUT / "milk.png"), rgb)
 mi.util.write_bitmap(str(OUT / "milk-mask.png"), mask.astype(np.float32))
+show(OUT / "milk.png")
 print("sphere pixels", int(mask.sum()), "mean RGB", np.round(rgb[mask].mean(axis=0), 4),
       "mean exitance M", np.round(exitance[mask].mean(axis=0), 4))
 print({stage: round(seconds, 3) for stage, seconds in integrator.stats["seconds"].items()})
@@ -111,6 +128,7 @@ for mfp in (0.5, 2.0, 8.0):  # the same colour, light travelling farther and far
     integrator.retransport(objects=[replace(obj, material=new, profile=new.profile())])
     edited = np.asarray(integrator.render_prepared())[..., :3]
     mi.util.write_bitmap(str(OUT / f"mfp-{mfp:g}mm.png"), edited)
+    show(OUT / f"mfp-{mfp:g}mm.png")
     means[mfp] = edited[mask].mean(axis=0)  # over the sphere's pixels
     seconds = integrator.stats["seconds"]["transport"]
     print(f"mfp {mfp:g} mm: sphere's mean RGB {np.round(means[mfp], 4)}, transport {seconds:.2f} s")
@@ -124,4 +142,5 @@ from convsss.profiles.models import PROFILE_MODELS  # noqa: E402
 from convsss.profiles.plot import plot_profiles  # noqa: E402
 
 plot_profiles([("wholemilk", [(model, milk.profile(model)) for model in PROFILE_MODELS])], OUT / "profiles.png")
+show(OUT / "profiles.png")
 print("wrote", sorted(p.name for p in OUT.iterdir()))

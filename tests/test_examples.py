@@ -41,3 +41,13 @@ def test_a_material_edit_rebuilds_the_transports_only(notebook):
     means = ns["means"]
     # The same colour with a longer mean free path: a different image, light spread farther through the sphere.
     assert not np.allclose(means[0.5], means[8.0], rtol=1e-3)
+
+
+def test_the_ipynb_jupyter_opens_holds_the_notebook_cells():
+    """Issue 30 (friction): the notebook needed jupytext by hand. examples/notebook.ipynb is shipped; its cells are
+    those of examples/notebook.py (regenerate it with `jupytext --to ipynb examples/notebook.py`)."""
+    import jupytext  # the dev extra
+
+    source = jupytext.read(NOTEBOOK)
+    shipped = jupytext.read(NOTEBOOK.with_suffix(".ipynb"))
+    assert [(c.cell_type, c.source) for c in shipped.cells] == [(c.cell_type, c.source) for c in source.cells]

@@ -34,7 +34,7 @@ is ``f(mu_0, mu) ∝ F_t(mu_0) g(mu_0) F_t(mu) g(mu)``, so paper Eq. 7 becomes
 
 ``k`` keeping the exitance ``T_d M`` that Eq. 7 sends out. At low albedo light leaves mostly towards grazing (Eq.
 O2's ``1/(mu + mu_0)``), where the Lambertian Eq. 7 is up to 30 % too dark on a sphere; Eq. O4 is within 1 % of Eq. O2
-there, for any albedo (docs/benchmarks.md, "Oblique incidence").
+there, for any albedo (docs/history/benchmarks-notebook.md, "Oblique incidence").
 
 **Single scattering on its own** (the renderer's ``single_scattering = traced``: the shader traces it through the
 object's real shape, :mod:`convsss.scene.shading`). Of Eq. O2's radiance, the light scattered once and leaving
