@@ -104,3 +104,21 @@ def test_exr_files_are_written_and_read_on_one_cpu(tmp_path):
                             preexec_fn=lambda: os.sched_setaffinity(0, {one_cpu}),
                             env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")})
     assert result.returncode == 0 and result.stdout.strip() == "(8, 8, 3)", result.stderr
+
+
+def test_a_variant_that_cannot_start_is_one_line():
+    """Issue 30, defect 10: convsss.register(variant='cuda_ad_rgb') on a machine without a GPU raised an ImportError
+    from deep in Dr.Jit."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = ("import convsss\ntry:\n    convsss.register(variant='cuda_ad_rgb')\n    print('started')\n"
+            "except convsss.ConvsssError as error:\n    print('refused:', error)\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                            env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")})
+    if result.stdout.startswith("started"):
+        pytest.skip("this machine starts cuda_ad_rgb")
+    assert result.returncode == 0 and result.stdout.startswith("refused: Mitsuba variant 'cuda_ad_rgb' cannot "
+                                                                "start on this machine"), result.stderr

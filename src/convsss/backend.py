@@ -47,7 +47,11 @@ def load_mitsuba(variant=None):
     import mitsuba as mi
 
     if active != chosen:
-        mi.set_variant(chosen)
+        try:
+            mi.set_variant(chosen)
+        except ImportError as error:  # cuda_ad_rgb without a GPU or its driver
+            raise ConvsssError(f"Mitsuba variant {chosen!r} cannot start on this machine: "
+                               f"{' '.join(str(error).split())[:200]}") from None
         import drjit as dr
 
         if dr.thread_count() < MIN_THREADS:

@@ -362,3 +362,18 @@ def test_mi_traverse_exposes_and_sets_the_numeric_parameters(mi, sphere_scene):
         params.update()
     assert integrator.params.sample_density == 4.0
     assert "integrator.accuracy" in mi.traverse(scene).keys()
+
+
+def test_a_translucent_rectangle_renders(mi, sphere_scene):
+    """Issue 30: a rectangle is a mesh without vertex positions to Mitsuba; its samples failed with a KeyError. It
+    renders (an open surface, with its warning)."""
+    from convsss.scene.materials import translucent
+    from convsss.scene.objects import MeshWarning
+
+    scene_dict = sphere_scene(res=16, spp=1)
+    scene_dict["object"] = translucent({"type": "rectangle", "to_world": mi.ScalarTransform4f().scale(2.0)},
+                                       convsss.material("skin1"), boundary="null")
+    with pytest.warns(MeshWarning, match="not known to be a closed surface"):
+        scene = mi.load_dict(scene_dict)
+        image = np.array(scene.integrator().render(scene, scene.sensors()[0]))
+    assert np.all(np.isfinite(image)) and image[..., :3].max() > 0

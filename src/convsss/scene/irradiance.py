@@ -90,6 +90,12 @@ def morton_order(points):
     return np.argsort(code, kind="stable")
 
 
+def has_vertices(shape):
+    """Whether ``shape`` is a triangle mesh with vertex arrays (Mitsuba's rectangle says it is a mesh, and has
+    none: it maps the unit square continuously, as analytic shapes do)."""
+    return bool(shape.is_mesh()) and "vertex_positions" in mi.traverse(shape)
+
+
 def mesh_arrays(shape):
     """A Mitsuba mesh's vertices (V, 3) float64, in its own space, and faces (F, 3) int64."""
     params = mi.traverse(shape)
@@ -139,8 +145,9 @@ def mesh_square(shape, count, seed, stream=0):
 
 def surface_square(shape, count, seed, stream=0):
     """The points of ``[0,1]^2`` that ``shape.sample_position`` maps to stratified surface points: :func:`mesh_square`
-    for a mesh, else the jittered grid of :func:`stratified_square` (analytic shapes map the square continuously)."""
-    if shape.is_mesh() and MESH_STRATIFICATION:
+    for a mesh, else the jittered grid of :func:`stratified_square` (analytic shapes map the square continuously,
+    :func:`has_vertices`)."""
+    if MESH_STRATIFICATION and has_vertices(shape):
         return mesh_square(shape, count, seed, stream)
     return stratified_square(count, seed, stream)
 

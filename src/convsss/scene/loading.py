@@ -18,7 +18,7 @@ from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
 from .integrator import register
 from .meshfiles import check_mesh_file
-from .presets import check_named_media
+from .objects import check_named_media
 
 #: ``<string name=...>`` properties that name a file: every plugin's ``filename``, the convsss integrator's ``profile``.
 FILE_PROPERTIES = ("filename", "profile")

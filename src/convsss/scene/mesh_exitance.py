@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import ConvsssError
 from ..memory import check_memory
-from .irradiance import mesh_arrays
+from .irradiance import has_vertices, mesh_arrays
 
 #: A face is interpolated (Eq. V2) when its centroid's ``M`` is within this fraction of its vertices' mean.
 TOLERANCE = 0.02
@@ -33,7 +33,7 @@ CHUNK_FACES = 1 << 20
 def usable(obj):
     """Whether ``obj`` can have a :class:`MeshExitance`: its shape is a mesh whose table fits in memory (else its
     hits are asked of the transport, as without a table)."""
-    if not obj.shape.is_mesh():
+    if not has_vertices(obj.shape):
         return False
     size = BYTES_PER_VERTEX * int(obj.shape.vertex_count()) + BYTES_PER_FACE * int(obj.shape.face_count())
     try:

@@ -25,8 +25,8 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material
 from ..profiles.models import DEFAULT_TOTAL, PROFILE_MODELS, parse_profile_spec, resolve_profile
-from .irradiance import area_scale, mesh_arrays, sample_surface
-from .presets import check_boundary, check_color_model, named_medium_of
+from .irradiance import area_scale, has_vertices, mesh_arrays, sample_surface
+from .presets import any_named_media, check_boundary, check_color_model, named_medium_of
 
 #: Mitsuba class names of the boundaries a translucent object may have.
 BOUNDARY_CLASSES = {"Null": "null", "SmoothDielectric": "dielectric", "RoughDielectric": "roughdielectric"}
@@ -192,7 +192,7 @@ def mesh_topology(shape):
 def _surface(mi, shape, name):
     """``(orientation, closed)``: +1 if the outward normal is the shape's normal, -1 if a closed mesh is wound
     inwards; whether the shape is known to bound a volume. Warns on open or unknown surfaces."""
-    if not (shape.is_mesh() and "vertex_positions" in mi.traverse(shape)):  # a rectangle is a mesh without vertices
+    if not has_vertices(shape):
         closed = shape.class_name() in CLOSED_ANALYTIC
         if not closed:
             warnings.warn(f"translucent shape {name!r} is a {shape.class_name()!r}, not known to be a closed "
@@ -260,6 +260,18 @@ def check_lights_outside(mi, scene, objects):
                 raise ConvsssError(f"light {emitter.id()!r} is inside translucent shape {obj.name!r}: the diffusion "
                                    "model lights objects through their surface from outside; move the light out, or "
                                    "render the scene with `convsss reference`")
+
+
+def check_named_media(mi, scene):
+    """:func:`~.presets.check_boundary` (without units) for every shape of ``scene`` whose interior is a
+    ``convsss_medium``; what ``convsss reference`` and :func:`~convsss.scene.loading.load_scene` check."""
+    if not any_named_media():
+        return
+    for name, shape, _ in scene_surfaces(mi, scene):
+        named = named_medium_of(mi, shape.interior_medium())
+        if named is not None:
+            boundary, eta = boundary_eta(mi, shape.bsdf(), name)
+            check_boundary(named, boundary, eta, name)
 
 
 def hit_indices(mi, si):

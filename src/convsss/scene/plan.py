@@ -27,7 +27,7 @@ import numpy as np
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..memory import USABLE_FRACTION, available_memory, check_memory
-from .irradiance import mesh_arrays, sample_count
+from .irradiance import has_vertices, mesh_arrays, sample_count
 
 mi = load_mitsuba()
 
@@ -115,7 +115,7 @@ def check_film(width, height, samples_per_pass, aov_channels=0):
 def view_bounds(obj, frame, unit_mm):
     """(2, 3) bounds in mm of ``obj``'s surface in the camera's view ``frame``: of its mesh's vertices (every surface
     point lies in their convex hull), or of its world bounding box's corners for an analytic shape."""
-    if obj.shape.is_mesh() and "vertex_positions" in mi.traverse(obj.shape):
+    if has_vertices(obj.shape):
         local, _ = mesh_arrays(obj.shape)
         points = (local @ obj.to_world[:3, :3].T + obj.to_world[:3, 3]) * unit_mm
     else:

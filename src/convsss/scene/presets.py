@@ -305,16 +305,7 @@ def check_color_model(named, spec, name, total):
                   "to match the colour", ColorModelWarning, stacklevel=3)
 
 
-def check_named_media(mi, scene):
-    """:func:`check_boundary` (without units) for every shape of ``scene`` whose interior is a ``convsss_medium``;
-    what ``convsss reference`` and :func:`~convsss.scene.loading.load_scene` check."""
+def any_named_media():
+    """Whether this process has made any ``convsss_medium`` (else no scene holds one)."""
     with _LOCK:
-        if not _MADE:
-            return
-    from .objects import boundary_eta, scene_surfaces
-
-    for name, shape, _ in scene_surfaces(mi, scene):
-        named = named_medium_of(mi, shape.interior_medium())
-        if named is not None:
-            boundary, eta = boundary_eta(mi, shape.bsdf(), name)
-            check_boundary(named, boundary, eta, name)
+        return bool(_MADE)
