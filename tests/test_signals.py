@@ -65,3 +65,33 @@ def test_an_interrupt_that_drjit_wrapped_comes_out_as_itself():
             except KeyboardInterrupt as error:
                 raise RuntimeError("drjit.custom(...): error while performing a custom operation") from error
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+@pytest.mark.slow
+def test_sigterm_ends_a_process_stuck_in_compiled_code():
+    """A process stuck in C (where Python cannot raise Terminated: the helper who reproduced issue 30 found a hung
+    convsss that ignored `timeout`'s SIGTERM) still ends, GRACE seconds later, with exit 143."""
+    import time
+
+    from convsss.signals import GRACE
+
+    # The main thread blocks SIGTERM after the watchdog starts (which keeps it unblocked) and sleeps: Python never
+    # runs the handler there, as in a long C call; the watchdog thread receives the signal.
+    code = textwrap.dedent("""
+        import signal, time
+        from convsss.signals import terminate_as_interrupt
+        terminate_as_interrupt()
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
+        print("stuck", flush=True)
+        time.sleep(120)
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": SRC})
+    try:
+        assert proc.stdout.readline().strip() == "stuck"
+        start = time.perf_counter()
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=GRACE + 60) == 143
+        assert time.perf_counter() - start >= GRACE - 1
+    finally:
+        proc.kill()

@@ -5,12 +5,22 @@ down (``Integrator.should_stop``), and it can stay installed after the render re
 ``KeyboardInterrupt`` anywhere in the process (``convsss edit`` could not be stopped, issue 30). :func:`mitsuba_render`
 puts Python's own handler back after each render and turns a render that Mitsuba wound down into a
 ``KeyboardInterrupt``, so that no partial image leaves it. :func:`terminate_as_interrupt` makes SIGTERM raise
-:class:`Terminated` (a ``KeyboardInterrupt``), so that a command stopped by ``kill`` cleans up as on Ctrl-C.
+:class:`Terminated` (a ``KeyboardInterrupt``), so that a command stopped by ``kill`` cleans up as on Ctrl-C; one
+stuck in compiled code, where Python cannot raise it, still ends :data:`GRACE` seconds later (exit 143; a later write
+into the same folder removes the temporaries it left, :func:`convsss.files.remove_stale_temporaries`).
 """
 
+import os
 import signal
 import threading
+import time
 from contextlib import contextmanager
+
+#: Seconds a process that got SIGTERM has to stop by itself before it is ended at once.
+GRACE = 10.0
+#: The exit code of a process ended by SIGTERM (128 + 15).
+TERMINATED = 143
+_WATCHED = False
 
 
 class Terminated(KeyboardInterrupt):
@@ -42,11 +52,27 @@ def mitsuba_render(integrator=None):
 
 
 def terminate_as_interrupt():
-    """From now on SIGTERM raises :class:`Terminated` in the main thread (call from it; elsewhere nothing changes)."""
-    if not _main_thread():
+    """From now on SIGTERM raises :class:`Terminated` in the main thread, and ends the process :data:`GRACE` seconds
+    later if it has not stopped (call from the main thread; elsewhere, or a second time, nothing changes)."""
+    global _WATCHED
+    if not _main_thread() or _WATCHED:
         return
+    _WATCHED = True
 
     def terminated(signum, frame):
         raise Terminated
 
     signal.signal(signal.SIGTERM, terminated)
+    # Python runs a handler only between bytecodes; its C-level handler also writes the signal's number into the
+    # wakeup fd at once, which a watchdog thread reads.
+    read, write = os.pipe()
+    os.set_blocking(write, False)
+    signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+
+    def watchdog():
+        while signal.SIGTERM not in os.read(read, 64):
+            pass
+        time.sleep(GRACE)
+        os._exit(TERMINATED)
+
+    threading.Thread(target=watchdog, name="sigterm-watchdog", daemon=True).start()

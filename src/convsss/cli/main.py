@@ -12,12 +12,10 @@ import click
 
 from .. import __version__
 from ..errors import ConvsssError
-from ..signals import Terminated, terminate_as_interrupt
+from ..signals import TERMINATED, Terminated, terminate_as_interrupt
 
 #: Exit code of a command stopped by Ctrl-C (128 + SIGINT, as shells report it).
 INTERRUPTED = 130
-#: Exit code of a command stopped by SIGTERM (128 + SIGTERM); it cleans up as on Ctrl-C.
-TERMINATED = 143
 
 
 class _ConvsssGroup(click.Group):
