@@ -155,9 +155,9 @@ def test_effective_area_of_the_dipole_shrinks_with_the_mean_free_path_squared():
 
 def test_a_profile_file_with_too_many_rows_is_refused_before_it_is_read_whole(tmp_path, monkeypatch):
     """Issue 30, defect 14: `convsss profile plot` of a million rows ran past 150 s; the rows are counted as read."""
-    import convsss.profiles as profiles
+    import convsss.profiles.tabulated as tabulated
 
-    monkeypatch.setattr(profiles, "MAX_PROFILE_ROWS", 50)
+    monkeypatch.setattr(tabulated, "MAX_PROFILE_ROWS", 50)
     path = tmp_path / "long.csv"
     path.write_text("r_mm,R,G,B\n" + "".join(f"{0.01 * (k + 1)},{1.0 / (k + 1)},{1.0 / (k + 1)},{1.0 / (k + 1)}\n"
                                              for k in range(51)))

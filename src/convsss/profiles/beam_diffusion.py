@@ -23,6 +23,7 @@ scattering's start past the critical depth ``r sqrt(eta^2 - 1)``.
 import numpy as np
 
 from ..fresnel import diffuse_transmittance, fresnel_reflectance
+from .base import register_profile
 from .diffusion import point_source_exitance
 from .optical import OpticalProfile
 
@@ -74,8 +75,15 @@ class BeamDiffusionProfile(OpticalProfile):
         Relative index of the boundary.
     """
 
+    name = "pbd"
+    title = "photon beam diffusion + single scattering (Habel et al. 2013)"
+    rank = 2
+
     model = "pbd"
 
     @classmethod
     def optical_values(cls, r, albedo, eta):
         return (multiple_scattering(r, albedo, eta) + single_scattering(r, albedo, eta)) / diffuse_transmittance(eta)
+
+
+register_profile(BeamDiffusionProfile)

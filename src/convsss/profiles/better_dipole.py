@@ -14,6 +14,7 @@ and ``∫ 2 pi r z (1 + s d) e^{-s d}/d^3 dr = 2 pi e^{-s z}``):
 import numpy as np
 
 from ..fresnel import diffuse_transmittance
+from .base import register_profile
 from .diffusion import boundary, grosjean, point_source_exitance
 from .optical import OpticalProfile
 
@@ -28,6 +29,10 @@ class BetterDipoleProfile(OpticalProfile):
     eta : float
         Relative index of the boundary.
     """
+
+    name = "better-dipole"
+    title = "better dipole (d'Eon 2012)"
+    rank = 1
 
     model = "better-dipole"
 
@@ -44,3 +49,6 @@ class BetterDipoleProfile(OpticalProfile):
         fluence = (z_v - z_r) if s == 0 else (np.exp(-s * z_r) - np.exp(-s * z_v)) / s
         flux = 0.5 * (np.exp(-s * z_r) + np.exp(-s * z_v))
         return float(albedo * (c_phi * fluence / (2.0 * d) + c_e * flux) / diffuse_transmittance(eta))
+
+
+register_profile(BetterDipoleProfile)

@@ -13,6 +13,7 @@ reach and differ in shape only. Optical units (``sigma_t' = 1``).
 
 import numpy as np
 
+from .base import register_profile
 from .beam_diffusion import BeamDiffusionProfile
 from .optical import OpticalProfile
 
@@ -40,6 +41,10 @@ class BurleyProfile(OpticalProfile):
         Relative index of the boundary.
     """
 
+    name = "burley"
+    title = "Christensen & Burley 2015"
+    rank = 3
+
     model = "burley"
 
     @classmethod
@@ -48,3 +53,6 @@ class BurleyProfile(OpticalProfile):
         if pbd.zero:  # alpha' = 0: nothing scatters, nothing comes back
             return np.zeros_like(r)
         return burley_values(r, pbd.total, 0.4 * mean_radius(pbd))
+
+
+register_profile(BurleyProfile)

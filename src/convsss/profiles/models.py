@@ -12,37 +12,25 @@ from scipy.optimize import brentq
 
 from ..errors import ConvsssError
 from ..fresnel import check_eta, diffuse_transmittance
-from . import CHANNELS, DipoleProfile, ScaledProfile, TabulatedProfile
-from .beam_diffusion import BeamDiffusionProfile
-from .better_dipole import BetterDipoleProfile
-from .burley import BurleyProfile
+from . import beam_diffusion, better_dipole, burley, dipole  # noqa: F401  (each registers its model)
+from .base import CHANNELS, PROFILE_MODELS, ScaledProfile
 from .incidence import escaped
+from .tabulated import TabulatedProfile
 
-#: Every model: the paper's classic dipole and the three that match volumetric ground truth better.
-PROFILE_MODELS = {
-    "dipole": DipoleProfile,
-    "better-dipole": BetterDipoleProfile,
-    "pbd": BeamDiffusionProfile,
-    "burley": BurleyProfile,
-}
-#: The renderer's default, chosen by measurement (docs/benchmarks.md, "Profiles against a path-traced slab").
+#: The renderer's default of :data:`PROFILE_MODELS` (each model registers itself, :mod:`.base`), chosen by
+#: measurement (docs/history/benchmarks-notebook.md, "`convsss profile validate --all`").
 DEFAULT_PROFILE = "dipole"
 #: What fixes a model's total reflectance (the renderer's ``profile_total``): ``exact``, that of the half-space of the
 #: medium by exact radiative transfer (:func:`exact_total`), the model keeping its shape; ``model``, the model's own.
 PROFILE_TOTALS = ("exact", "model")
-#: The renderer's default, chosen by measurement (docs/benchmarks.md, "Exit and total").
+#: The renderer's default, chosen by measurement (docs/history/benchmarks-notebook.md, "Exit and total").
 DEFAULT_TOTAL = "exact"
 #: What a colour (a total reflectance) is inverted under: the exact total, which every model renders with
 #: ``profile_total`` exact, or one model's own total.
 COLOR_MODELS = ("exact", *PROFILE_MODELS)
 DEFAULT_COLOR_MODEL = "exact"
 #: What each model is, in words (help texts, plots).
-MODEL_TITLES = {
-    "dipole": "classic dipole (Jensen et al. 2001)",
-    "better-dipole": "better dipole (d'Eon 2012)",
-    "pbd": "photon beam diffusion + single scattering (Habel et al. 2013)",
-    "burley": "Christensen & Burley 2015",
-}
+MODEL_TITLES = {name: cls.title for name, cls in PROFILE_MODELS.items()}
 
 
 def check_model(name):
@@ -163,10 +151,7 @@ def model_total(model, albedo, eta):
     ``albedo`` at index ``eta``; it does not depend on the mean free path."""
     if model == "exact":
         return float(exact_total(albedo, eta))
-    cls = PROFILE_MODELS[check_model(model)]
-    if cls is DipoleProfile:
-        return float(DipoleProfile(albedo, 1.0 - albedo, eta).total_reflectance[0])
-    return cls.optical_total(float(albedo), float(eta))
+    return PROFILE_MODELS[check_model(model)].optical_total(float(albedo), float(eta))
 
 
 #: Reduced albedos searched when inverting a colour.

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from ..errors import ConvsssError
-from . import Profile
+from .base import Profile
 
 #: Radius (mfp) inside which a profile is held constant; grid points per decade of optical radius.
 CORE = 0.01
