@@ -1,5 +1,5 @@
 # Two targets for a newcomer; both set everything up first (scripts/setup.sh is idempotent).
-.PHONY: setup demo test lint
+.PHONY: setup demo test test-fast lint
 
 setup:
 	@bash scripts/setup.sh
@@ -13,6 +13,11 @@ demo: setup
 
 test: setup
 	.venv/bin/python -m pytest -q
+
+# The fast loop: every test but those marked slow (renders over a second, subprocesses, Ctrl-C, the battery's matrix,
+# the notebook); `make test` (CI) runs them all.
+test-fast: setup
+	.venv/bin/python -m pytest -q -m "not slow"
 
 lint: setup
 	.venv/bin/ruff check src tests

@@ -59,11 +59,13 @@ def test_supported_variants_are_jit_rgb():
     assert all(v.endswith("_rgb") and not v.startswith("scalar") for v in SUPPORTED_VARIANTS)
 
 
+@pytest.mark.slow
 def test_no_active_variant_sets_the_default():
     out = _run('attempt("register", convsss.register)')
     assert out == {"register": "ok", "register variant": DEFAULT_VARIANT}
 
 
+@pytest.mark.slow
 def test_active_supported_variant_is_kept():
     out = _run(f'mi.set_variant("{DEFAULT_VARIANT}")\nattempt("register", convsss.register)')
     assert out == {"register": "ok", "register variant": DEFAULT_VARIANT}
@@ -71,6 +73,7 @@ def test_active_supported_variant_is_kept():
 
 @pytest.mark.parametrize("case, variant", [("scalar", "scalar_rgb"), ("spectral", "llvm_ad_spectral"),
                                            ("requested mono", "llvm_ad_mono")])
+@pytest.mark.slow
 def test_unsupported_variant_is_refused_in_one_line_and_left_alone(switching, case, variant):
     message = switching[case]
     assert message.startswith(f"ConvsssError: Mitsuba variant '{variant}'") and "\n" not in message
@@ -88,6 +91,7 @@ def test_second_variant_in_one_process_is_refused(switching):
                                                   "'llvm_ad_rgb'")
 
 
+@pytest.mark.slow
 def test_exr_files_are_written_and_read_on_one_cpu(tmp_path):
     """Issue 30, defect 11: pinned to one CPU (``taskset -c 0``, CPU-pinned containers), Mitsuba's EXR writer and
     reader hung forever; Dr.Jit's pool keeps two threads."""
@@ -106,6 +110,7 @@ def test_exr_files_are_written_and_read_on_one_cpu(tmp_path):
     assert result.returncode == 0 and result.stdout.strip() == "(8, 8, 3)", result.stderr
 
 
+@pytest.mark.slow
 def test_a_variant_that_cannot_start_is_one_line():
     """Issue 30, defect 10: convsss.register(variant='cuda_ad_rgb') on a machine without a GPU raised an ImportError
     from deep in Dr.Jit."""

@@ -63,6 +63,7 @@ def test_materials_table():
     assert any(line.startswith("Wholemilk") and "0.908/0.881/0.759" in line for line in lines)
 
 
+@pytest.mark.slow
 def test_console_script_reports_bad_input_in_one_line():
     # The installed entry point, as a user runs it: a bad input is one line on stderr and exit code 2.
     code = "from convsss.cli import cli\n" \
@@ -78,6 +79,7 @@ def test_console_script_reports_bad_input_in_one_line():
     assert "Traceback" not in proc.stderr
 
 
+@pytest.mark.slow
 def test_ctrl_c_ends_any_command_in_one_line():
     code = "from convsss.cli import cli\n" \
            "@cli.command()\n" \
@@ -124,6 +126,7 @@ def test_bad_outputs_fail_in_one_line_and_write_nothing(images, args, message):
     assert "Traceback" not in result.output and _snapshot(images) == before
 
 
+@pytest.mark.slow
 def test_profile_validate_and_plot_write_their_files(tmp_path):
     runner = CliRunner()
     out = tmp_path / "v"

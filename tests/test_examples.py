@@ -18,6 +18,7 @@ def notebook(tmp_path_factory):
         return out, runpy.run_path(str(NOTEBOOK), run_name="__main__")
 
 
+@pytest.mark.slow
 def test_writes_every_image_and_the_profile_plot(notebook):
     out, _ = notebook
     names = {p.name for p in out.iterdir()}
@@ -25,6 +26,7 @@ def test_writes_every_image_and_the_profile_plot(notebook):
     assert all((out / name).stat().st_size > 0 for name in names)
 
 
+@pytest.mark.slow
 def test_the_aovs_show_the_sphere(notebook):
     _, ns = notebook
     mask, exitance = ns["mask"], ns["exitance"]
@@ -34,6 +36,7 @@ def test_the_aovs_show_the_sphere(notebook):
     assert np.all(exitance[~ns["channels"]["mask.Y"].astype(bool)] == 0)  # no translucent object: no exitance
 
 
+@pytest.mark.slow
 def test_a_material_edit_rebuilds_the_transports_only(notebook):
     _, ns = notebook
     seconds = ns["integrator"].stats["seconds"]

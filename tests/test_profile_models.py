@@ -28,6 +28,7 @@ def _numeric_total(p, c, core):
     return head + tail
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", NEW, ids=lambda m: m.model)
 @pytest.mark.parametrize("case", CASES, ids=str)
 def test_integral_of_profile_equals_total_reflectance(model, case):
@@ -102,6 +103,7 @@ def test_burley_has_the_beam_diffusion_total_and_mean_radius():
     assert mean_radius(BurleyProfile.curve(0.98, 1.3)) == pytest.approx(2.5 * d, rel=1e-3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", list(PROFILE_MODELS))
 def test_colour_and_mfp_round_trip(model):
     color, mfp = np.array([0.8, 0.45, 0.12]), np.array([1.5, 0.8, 0.4])

@@ -30,6 +30,7 @@ def test_single_scattering_of_an_index_matched_slab_is_exact():
     assert single == pytest.approx(0.5 * (1 - np.log(2)) / 2, rel=0.01)
 
 
+@pytest.mark.slow
 def test_tally_equals_volpathmis_on_the_same_slab():
     """By reciprocity a radiance meter looking down at the slab under a uniform sky reads its normal-incidence
     albedo; a black disk of 1 mm over the meter keeps only the light leaving beyond 1 mm."""
@@ -40,6 +41,7 @@ def test_tally_equals_volpathmis_on_the_same_slab():
         np.testing.assert_allclose(path_traced[:2], tallied[:2], rtol=tolerance)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("eta", [1.0, 1.3, 1.5])
 def test_normalization_of_eq1_on_the_better_dipole_at_high_albedo(eta):
     """At albedo 0.999 diffusion is exact away from the entry point: the better dipole's total, divided by T_d as

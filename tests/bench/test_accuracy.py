@@ -27,6 +27,7 @@ def sphere_rows():
                         scene="sphere", normals=points / np.linalg.norm(points, axis=1, keepdims=True))
 
 
+@pytest.mark.slow
 def test_rows_have_their_keys_and_the_exact_sum_first(sphere_rows):
     assert [r["transport"] for r in sphere_rows] == ["exact"] + ["convolution"] * 4 + ["hierarchical"] * 3
     assert [r["method"] for r in sphere_rows][1:5] == ["convolution"] * 2 + ["convolution+plane"] * 2
@@ -93,6 +94,7 @@ def test_headline_ratio_with_and_without_overlap():
     assert "no hierarchical point" in headline_text("s", apart)
 
 
+@pytest.mark.slow
 def test_bench_accuracy_quick_end_to_end(tmp_path, monkeypatch):
     import convsss.bench.accuracy as accuracy
 
@@ -119,6 +121,7 @@ def test_bench_accuracy_quick_end_to_end(tmp_path, monkeypatch):
     assert "front" in (tmp_path / "accuracy.txt").read_text()
 
 
+@pytest.mark.slow
 def test_a_case_takes_the_profile_the_renderer_would():
     from convsss.bench.scenes import prepare_case, scene_dict
     from convsss.profiles import DEFAULT_PROFILE, PROFILE_MODELS, ScaledProfile

@@ -2,12 +2,14 @@
 
 import json
 
+import pytest
 from click.testing import CliRunner
 
 from convsss.bench.render import STAGES, bench_render, render_table
 from convsss.cli import cli
 
 
+@pytest.mark.slow
 def test_rows_have_every_stage_and_both_integrators():
     rows = bench_render(resolutions=(48,), spps=(2,), runs=1, progress=False)
     assert len(rows) == 1
@@ -23,6 +25,7 @@ def test_rows_have_every_stage_and_both_integrators():
     assert "48²" in table and "convsss --version: 0.50 s" in table
 
 
+@pytest.mark.slow
 def test_cli_quick_json_without_command_lines():
     result = CliRunner().invoke(cli, ["bench", "render", "--quick", "--runs", "1", "--json", "--no-progress"])
     assert result.exit_code == 0, result.output

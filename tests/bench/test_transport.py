@@ -1,11 +1,13 @@
 import json
 
+import pytest
 from click.testing import CliRunner
 
 from convsss.bench.transport import STAGES, fft_floor
 from convsss.cli import cli
 
 
+@pytest.mark.slow
 def test_bench_transport_quick_json_has_its_keys():
     result = CliRunner().invoke(cli, ["bench", "transport", "--quick", "--runs", "1", "--json"])
     assert result.exit_code == 0, result.output

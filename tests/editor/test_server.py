@@ -25,6 +25,7 @@ def _request(server, method, path, body=None, host=None):
     return response.status, response.getheader("Content-Type"), response.read()
 
 
+@pytest.mark.slow
 def test_page_state_update_and_images(editor_server):
     assert editor_server.url.startswith("http://127.0.0.1:")
     status, kind, page = _request(editor_server, "GET", "/")
@@ -69,6 +70,7 @@ def _raw(server, method, path, headers, body=b""):
     return response.status, json.loads(response.read() or b"{}")
 
 
+@pytest.mark.slow
 def test_no_other_page_can_drive_the_editor(editor_server):
     """Issue 30, defect 4: a cross-origin "simple" POST (text/plain, no preflight) and an ``Origin`` other than the
     page's own (``null`` included) are refused, and the material is unchanged; the page's own origin works."""
@@ -87,6 +89,7 @@ def test_no_other_page_can_drive_the_editor(editor_server):
     assert status == 200 and reply["material"]["sigma_a"] == [0.3, 0.3, 0.3]
 
 
+@pytest.mark.slow
 def test_bad_lengths_and_idle_clients_block_nobody(editor_server):
     """Issue 30, defect 12: ``Content-Length: -1`` and a body over the limit are refused without reading it; an idle
     connection and a POST whose body never comes do not stop another client from being served (each connection

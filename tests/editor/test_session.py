@@ -10,6 +10,7 @@ from convsss.errors import ConvsssError
 NO_GAIN = {"incidence": "normal", "single_scattering": "profile"}
 
 
+@pytest.mark.slow
 def test_new_coefficients_rebuild_the_transport_on_the_same_samples(session):
     s = session(NO_GAIN)
     prepared = s.integrator.prepared
@@ -31,6 +32,7 @@ def test_new_coefficients_rebuild_the_transport_on_the_same_samples(session):
     assert np.allclose(found.sigma_a, 0.3, rtol=1e-5) and np.allclose(found.sigma_s_prime, s.material.sigma_s_prime)
 
 
+@pytest.mark.slow
 def test_model_accuracy_and_colour_rebuild_the_transport_only(session):
     s = session(NO_GAIN)
     samples = s.integrator.prepared.samples
@@ -47,6 +49,7 @@ def test_model_accuracy_and_colour_rebuild_the_transport_only(session):
     assert s.version == 4  # ...so no render
 
 
+@pytest.mark.slow
 def test_a_new_albedo_prepares_again_with_oblique_incidence(session):
     """With incidence = oblique (the default) the samples' irradiance carries the albedo's gain: a new albedo needs
     new irradiance; a new model or accuracy does not."""
@@ -59,6 +62,7 @@ def test_a_new_albedo_prepares_again_with_oblique_incidence(session):
     assert s.integrator.prepared.transports[0].profile.base.sigma_a.tolist() == pytest.approx([0.3, 0.3, 0.3])
 
 
+@pytest.mark.slow
 def test_a_new_albedo_prepares_again_where_indirect_light_counts_its_single_scattering(session):
     """With single scattering traced (the default) the profile carries the multiple scattering alone, and indirect
     light, whose single scattering is not traced, enters with the albedo's share of it, even at normal incidence."""
@@ -76,6 +80,7 @@ def test_retransport_refuses_a_new_albedo_with_oblique_incidence(session):
         s.integrator.retransport([replace(obj, material=material, profile=material.profile())])
 
 
+@pytest.mark.slow
 def test_eta_prepares_again_and_is_refused_on_a_null_boundary(session):
     s = session(boundary="dielectric")
     samples = s.integrator.prepared.samples
@@ -99,6 +104,7 @@ def test_bad_edits_change_nothing(session):
     assert s.state() == state
 
 
+@pytest.mark.slow
 def test_a_preset_and_the_profile_plot(session):
     s = session(NO_GAIN)
     state = s.update(preset="marble")
@@ -107,6 +113,7 @@ def test_a_preset_and_the_profile_plot(session):
     assert len(state["presets"]) == 47
 
 
+@pytest.mark.slow
 def test_a_refused_edit_leaves_the_session_as_it_was(session):
     """Issue 30, defect 5: an edit that fails (an eta below 1, coefficients that overflow, an eta Fresnel cannot
     take) changes neither the state nor the scene, and the session goes on serving and editing."""
@@ -120,6 +127,7 @@ def test_a_refused_edit_leaves_the_session_as_it_was(session):
     assert s.update(sigma_a=[0.1, 0.1, 0.1])["material"]["sigma_a"] == [0.1, 0.1, 0.1]
 
 
+@pytest.mark.slow
 def test_a_preset_then_an_accuracy_edit_on_a_dielectric(session):
     """Issue 30, defect 6: a preset's eta (float64) and the scene's (float32) are one index, so the transport alone
     is rebuilt after it."""

@@ -15,6 +15,9 @@ from convsss.figures import FIGURES
 from convsss.figures.render import PROFILE_COLUMNS
 from convsss.image import read_image
 
+#: Every test here shares the module's render of the figures (minutes): all of them are slow.
+pytestmark = pytest.mark.slow
+
 
 def run(*args):
     return CliRunner().invoke(cli, [str(a) for a in args])

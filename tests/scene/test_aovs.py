@@ -63,6 +63,7 @@ def test_object_and_mask_mark_the_sphere_not_the_floor(floor_render, object_mask
     assert np.any((aov["mask.Y"][edge] > 0) & (aov["mask.Y"][edge] < 1))  # partly covered pixels
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("screen", [True, False], ids=["screen-table", "transport"])
 def test_exitance_is_what_the_sphere_pixels_are_made_of(mi, sphere_scene, monkeypatch, screen):
     """Index-matched boundary (F_t = 1, no reflection), ``incidence`` normal: every camera sample on the sphere has
@@ -148,6 +149,7 @@ def test_depth_and_normal_match_mitsubas_aov_integrator(mi, sphere_scene, floor_
         np.testing.assert_allclose(aov[f"normal.{c}"], theirs[f"nn.{c}"], atol=1e-5)
 
 
+@pytest.mark.slow
 def test_nested_in_mitsubas_aov_integrator(mi, sphere_scene):
     """``<integrator type="aov">`` around convsss: its channels as ``<name>.<aov>``, the same values."""
     scene_dict = sphere_scene(res=24, spp=2)

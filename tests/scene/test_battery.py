@@ -60,6 +60,7 @@ def _render(scene):
 EMITTERS = ("point", "spot", "directional", "constant", "envmap", "area")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("transport", sorted(available_transports()))
 @pytest.mark.parametrize("boundary", BOUNDARIES)
 @pytest.mark.parametrize("emitter", EMITTERS)
@@ -85,6 +86,7 @@ valid_params = st.fixed_dictionaries({}, optional={
 })
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(params=valid_params, emitter=st.sampled_from(EMITTERS), boundary=st.sampled_from(BOUNDARIES))
 def test_random_valid_parameters_give_a_finite_non_negative_image(tiny, params, emitter, boundary):
@@ -106,6 +108,7 @@ invalid_params = st.one_of(
 )
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(params=invalid_params)
 def test_random_invalid_parameters_fail_in_one_line(params):

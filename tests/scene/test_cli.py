@@ -50,6 +50,7 @@ def test_help_explains_every_option():
         assert option in text
 
 
+@pytest.mark.slow
 def test_render_a_scene_made_for_volpathmis(scene_file, tmp_path):
     out = tmp_path / "out" / "milk"
     stats = tmp_path / "milk.json"
@@ -67,6 +68,7 @@ def test_render_a_scene_made_for_volpathmis(scene_file, tmp_path):
     assert len(data["objects"][0]["mean_free_paths"]) == 3 and len(data["objects"][0]["diffusion_lengths"]) == 3
 
 
+@pytest.mark.slow
 def test_hand_written_volpath_scene_renders_as_it_is(tmp_path):
     """A scene written for volpathmis by hand (defaults, <lookat>, a referenced medium, an rgba film)."""
     scene = Path(__file__).parents[1] / "data" / "marble_cube_volpath.xml"
@@ -78,6 +80,7 @@ def test_hand_written_volpath_scene_renders_as_it_is(tmp_path):
     assert image.shape == (48, 48, 3) and np.all(np.isfinite(image)) and image.max() > 0
 
 
+@pytest.mark.slow
 def test_quick_render_of_a_mesh(tmp_path):
     out = tmp_path / "bunny"
     result = run("render", "--mesh", "bunny", "--material", "skin1", "--size-mm", 30, "--floor", "--width", 32,
@@ -86,6 +89,7 @@ def test_quick_render_of_a_mesh(tmp_path):
     assert read_image(out.with_suffix(".exr")).shape == (24, 32, 3)
 
 
+@pytest.mark.slow
 def test_aovs_and_mask_land_in_the_exr_and_a_png_and_compare_uses_them(tmp_path):
     """--aovs: channels of OUT.exr; --mask: the mask AOV too, and OUT-mask.png; compare then takes the bunny's
     pixels, not the lit floor's."""
@@ -113,6 +117,7 @@ def test_aovs_and_mask_land_in_the_exr_and_a_png_and_compare_uses_them(tmp_path)
     assert report["pixels"] == np.count_nonzero(mask) and report["mask_source"]["channel"] == "mask"
 
 
+@pytest.mark.slow
 def test_mask_keeps_the_scenes_own_aovs(studio):
     text = re.sub(r'<integrator type="volpathmis">.*?</integrator>', '<integrator type="convsss"><string '
                   'name="aovs" value="depth"/></integrator>', (studio / "studio.xml").read_text(), flags=re.DOTALL)
@@ -134,6 +139,7 @@ def test_bad_aovs_fail_in_one_line(studio, aovs, message):
                     studio, before)
 
 
+@pytest.mark.slow
 def test_reference_saves_every_pass(scene_file, tmp_path):
     out = tmp_path / "ref"
     result = run("reference", scene_file, "-o", out, "--spp", 3, "--pass-spp", 2, "--no-progress")
@@ -143,6 +149,7 @@ def test_reference_saves_every_pass(scene_file, tmp_path):
     assert read_image(out.with_suffix(".exr")).max() > 0
 
 
+@pytest.mark.slow
 def test_exposure_from_keys_the_png_on_another_image(scene_file, tmp_path):
     """--exposure-from IMAGE: the PNG keyed on IMAGE (here a reference 4x as bright: darker than keyed on itself);
     the EXR unchanged."""
@@ -173,6 +180,7 @@ def test_exposure_from_keys_the_png_on_another_image(scene_file, tmp_path):
     assert json.loads((tmp_path / "conv.json").read_text())["tonemap"]["exposure_from"] == str(ref) + ".exr"
 
 
+@pytest.mark.slow
 def test_reference_of_a_black_scene_warns_or_fails_with_strict(tmp_path):
     """Point lights behind a smooth dielectric: volpathmis renders the object black. A warning, or with --strict
     exit code 1, one line and nothing written."""
@@ -300,6 +308,7 @@ def test_bad_scene_ids_fail_in_one_line(tmp_path, shape_id, message):
     assert not (tmp_path / "s.xml").exists()
 
 
+@pytest.mark.slow
 def test_same_seed_same_png(scene_file, tmp_path):
     images = []
     for k in range(2):
@@ -422,6 +431,7 @@ def test_a_bad_integrator_parameter_in_the_scene_is_one_line(studio):
     assert result.stderr.strip() == "error: layers=0 is not allowed: it must be a whole number >= 2 and <= 256"
 
 
+@pytest.mark.slow
 def test_the_largest_seed_renders_a_reference(scene_file, tmp_path):
     result = run("reference", scene_file, "-o", tmp_path / "ref", "--seed", 2**32 - 1, "--spp", 2, "--pass-spp", 1,
                  "--no-progress")
@@ -452,12 +462,14 @@ def _interrupt(args, tmp_path, shown, wait=0.0, sig=signal.SIGINT):
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]
 
 
+@pytest.mark.slow
 def test_ctrl_c_ends_reference_in_one_line_without_outputs(scene_file, tmp_path):
     """SIGINT during the first pass (the progress bar shows once the scene is loaded, just before it)."""
     _interrupt(["reference", str(scene_file), "-o", str(tmp_path / "out" / "ref"), "--width", "16", "--height", "16",
                 "--spp", "1000000", "--pass-spp", "4000"], tmp_path, "volpathmis", wait=0.3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("stage", ["transport", "shading"])
 def test_ctrl_c_ends_render_in_one_line_without_outputs(tmp_path, stage):
     """SIGINT once the progress bar shows ``stage``."""
@@ -478,6 +490,7 @@ def test_sigterm_ends_render_as_ctrl_c_does(tmp_path):
 
 # ---- Materials by colour and distance, presets named in scene files ------------------------------------------
 
+@pytest.mark.slow
 def test_render_reference_and_scene_take_a_colour_and_mfp(tmp_path):
     """--color/--mfp-mm instead of --material: the object's material is Material.from_color's (under the default
     model at the boundary's eta), in render's stats, in the scene written and in reference."""
@@ -512,6 +525,7 @@ def test_render_reference_and_scene_take_a_colour_and_mfp(tmp_path):
     assert read_image(tmp_path / "ref.exr").max() > 0
 
 
+@pytest.mark.slow
 def test_render_warns_when_the_colour_model_is_not_the_rendered_one(tmp_path):
     args = ("render", "--mesh", "bunny", "--color", "0.7", "--mfp-mm", "1", "--size-mm", 20, "--width", 16,
             "--height", 16, "--spp", 1, "--no-progress", "--transport", "hierarchical")
@@ -579,6 +593,7 @@ def test_bad_named_media_fail_in_one_line_without_output(tmp_path, command, case
     _assert_clean_failure(result, message, tmp_path)
 
 
+@pytest.mark.slow
 def test_the_example_scene_renders_with_convsss_and_volpathmis(tmp_path):
     example = Path(__file__).parents[2] / "examples" / "skin_preset.xml"
     for command in ("render", "reference"):
@@ -603,6 +618,7 @@ def two_sensors(scene_file, tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_sensor_picks_a_camera_and_the_first_is_named(two_sensors, tmp_path):
     result = run("render", two_sensors, "-o", tmp_path / "a", "--spp", 1, "--no-progress", "--stats",
                  tmp_path / "a.json")
@@ -649,6 +665,7 @@ def test_edit_help_states_the_defaults_it_uses():
     assert "800 with --mesh" not in text
 
 
+@pytest.mark.slow
 def test_progress_is_plain_lines_when_stderr_is_no_terminal(scene_file, tmp_path):
     """Issue 30 (friction): logs of render and reference, stderr piped, have one line per stage or pass and no
     carriage return."""

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import convsss
 from convsss.image import read_layers
@@ -35,6 +36,7 @@ def render(out, drjit_threads, numba_threads, numba_cache):
     return np.concatenate([layers[name] for name in sorted(layers)], axis=2)
 
 
+@pytest.mark.slow
 def test_same_seed_same_image_whatever_the_threads_and_caches(tmp_path):
     """Mitsuba's vertex normals and its film's filter sum floats from every Dr.Jit thread at once: without a fixed
     order they change in the last bits from run to run. The first run compiles the numba kernels into an empty

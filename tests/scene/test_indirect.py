@@ -35,6 +35,7 @@ def room(mi):
     return make
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("max_depth, bounces", [(3, 1), (6, 4)])
 def test_indirect_light_in_a_spherical_room_is_the_radiosity_series(room, max_depth, bounces):
     """Inside a diffuse sphere of radius R every wall point sees every other under the same form factor
@@ -53,6 +54,7 @@ def test_indirect_light_in_a_spherical_room_is_the_radiosity_series(room, max_de
     np.testing.assert_allclose(obj["flux"], np.add(obj["flux_direct"], obj["flux_indirect"]))
 
 
+@pytest.mark.slow
 def test_indirect_light_brings_its_single_scattering_to_a_profile_without_it(room):
     """Single scattering traced (the default): the shader traces that of direct light, the profile carries the
     multiple scattering alone, and indirect light enters with its single scattering as the profile's own share,
@@ -69,6 +71,7 @@ def test_indirect_light_brings_its_single_scattering_to_a_profile_without_it(roo
     np.testing.assert_allclose(np.array(obj["flux_direct"]) / area, 400 / (4 * 20**2), rtol=0.01)
 
 
+@pytest.mark.slow
 def test_oblique_incidence_scales_both_by_the_cosine_weighted_gain(room):
     """The room's light is uniform over directions and the point light's cosines on the small sphere are uniform on
     its lit half: with incidence = oblique both fluxes gain 2 ∫ mu g(mu) dmu per channel (Eq. O1, skin1's albedo)."""
@@ -85,6 +88,7 @@ def test_oblique_incidence_scales_both_by_the_cosine_weighted_gain(room):
     np.testing.assert_allclose(np.array(obj["flux_direct"]) / area, 400 / (4 * 20**2) * mean_gain, rtol=0.01)
 
 
+@pytest.mark.slow
 def test_no_indirect_light_when_asked_for_none_or_paths_too_short(room):
     for integrator in ({"indirect_samples": 0}, {"max_depth": 2}):
         scene = room(integrator)
@@ -93,6 +97,7 @@ def test_no_indirect_light_when_asked_for_none_or_paths_too_short(room):
         assert "indirect" not in scene.integrator().stats["seconds"]
 
 
+@pytest.mark.slow
 def test_a_black_room_gives_no_indirect_light(room):
     scene = room({"indirect_samples": 4}, rho=0.0)
     assert scene.integrator().stats["objects"][0]["flux_indirect"] == [0.0, 0.0, 0.0]
@@ -120,6 +125,7 @@ def against_volpath(mi, object_mask):
     return ratio
 
 
+@pytest.mark.slow
 def test_sphere_in_a_closed_box_against_volpathmis(against_volpath):
     """The box's walls bring most of the light. Direct light alone is far too dark; with indirect light the ratio to
     volpathmis comes back to the profile's own bias measured without the box: within 3 % of its bias under the
@@ -144,6 +150,7 @@ def test_absurdly_many_indirect_paths_are_refused_before_they_start(mi, sphere_s
         scene.integrator().render(scene, scene.sensors()[0])
 
 
+@pytest.mark.slow
 def test_two_translucent_objects_light_each_other(mi, sphere_scene):
     """A convex sphere alone gets no light from translucent objects; next to another, each gets some, and a second
     pass changes less than the first."""

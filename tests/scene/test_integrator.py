@@ -13,6 +13,7 @@ def _render(mi, scene_dict, seed=0, **kwargs):
     return scene, image
 
 
+@pytest.mark.slow
 def test_tiny_scene_renders_through_mi_render(mi, sphere_scene, object_mask):
     scene, image = _render(mi, sphere_scene(floor=True))
     assert image.shape == (48, 48, 3) and np.all(np.isfinite(image))
@@ -24,6 +25,7 @@ def test_tiny_scene_renders_through_mi_render(mi, sphere_scene, object_mask):
     assert stats["transports"][0]["transport"] == "multiscale"  # the default
 
 
+@pytest.mark.slow
 def test_same_seed_same_image(mi, sphere_scene):
     scene_dict = sphere_scene(floor=True, res=32)
     _, a = _render(mi, scene_dict, seed=5)
@@ -31,6 +33,7 @@ def test_same_seed_same_image(mi, sphere_scene):
     np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_convolution_agrees_with_exact_sum(mi, sphere_scene, object_mask):
     """Same scene, same samples: the layered convolution and the direct sum within 3 % over the object.
 
@@ -47,6 +50,7 @@ def test_convolution_agrees_with_exact_sum(mi, sphere_scene, object_mask):
     np.testing.assert_allclose(ratio, 1.0, atol=0.03)
 
 
+@pytest.mark.slow
 def test_plane_correction_brings_few_layers_closer_to_the_exact_sum(mi, sphere_scene, object_mask):
     """8 layers on the 4 mm skin sphere (dz ~ 0.57 mm, about 0.5-0.9 mean free paths): mean per-pixel relative
     difference to the exact sum over the object, the paper's layers (``correction="none"``) against the plane
@@ -67,6 +71,7 @@ def test_plane_correction_brings_few_layers_closer_to_the_exact_sum(mi, sphere_s
     assert error("plane") < 0.5 * error("none"), (error("plane"), error("none"))
 
 
+@pytest.mark.slow
 def test_environment_map_lights_the_object(mi, sphere_scene, object_mask, tmp_path):
     from convsss.image import write_exr
 
@@ -81,6 +86,7 @@ def test_environment_map_lights_the_object(mi, sphere_scene, object_mask, tmp_pa
     assert image[~mask].mean(axis=0)[2] > image[~mask].mean(axis=0)[0]  # the sky behind is seen, blue
 
 
+@pytest.mark.slow
 def test_dielectric_boundary_reflects_the_environment(mi, sphere_scene):
     """bsdf minus none is the mirror image of a uniform sky: F_r(eta, cos) at the sphere's centre pixel."""
     env = {"sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}}}
@@ -95,6 +101,7 @@ def test_dielectric_boundary_reflects_the_environment(mi, sphere_scene):
     assert np.all(reflection >= -1e-6)
 
 
+@pytest.mark.slow
 def test_phong_highlight_and_null_boundary(mi, sphere_scene):
     images = {}
     for boundary in ("dielectric", "null"):
@@ -107,6 +114,7 @@ def test_phong_highlight_and_null_boundary(mi, sphere_scene):
     np.testing.assert_allclose(images["null", "phong"], images["null", "none"], atol=1e-7)
 
 
+@pytest.mark.slow
 def test_user_profile_replaces_the_dipole(mi, sphere_scene, object_mask, tmp_path):
     skin = convsss.material("skin1")
     dipole = DipoleProfile(skin.sigma_s_prime, skin.sigma_a, 1.0)
@@ -123,6 +131,7 @@ def test_user_profile_replaces_the_dipole(mi, sphere_scene, object_mask, tmp_pat
     np.testing.assert_array_equal(user, again)
 
 
+@pytest.mark.slow
 def test_two_objects_each_with_its_own_grid(mi, sphere_scene):
     second = convsss.scene.translucent({"type": "sphere", "radius": 1.0, "center": [3.0, 0.0, 0.0]},
                                        convsss.material("marble"), boundary="null")
@@ -134,6 +143,7 @@ def test_two_objects_each_with_its_own_grid(mi, sphere_scene):
     assert np.all(np.isfinite(image))
 
 
+@pytest.mark.slow
 def test_crop_window_renders_its_part(mi, sphere_scene):
     scene_dict = sphere_scene(res=40, spp=4)
     scene_dict["sensor"]["film"].update({"crop_offset_x": 10, "crop_offset_y": 10, "crop_width": 20,
@@ -144,6 +154,7 @@ def test_crop_window_renders_its_part(mi, sphere_scene):
     assert full[10:30, 10:30].mean() == pytest.approx(image.mean(), rel=0.05)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("single", ["profile", "traced"])
 def test_scene_in_centimetres_renders_the_same(mi, sphere_scene, single):
     """Coefficients per scene unit and unit_mm = 10: the same object, the same light, the same image (traced single
@@ -155,6 +166,7 @@ def test_scene_in_centimetres_renders_the_same(mi, sphere_scene, single):
     np.testing.assert_allclose(cm.mean(axis=(0, 1)), mm.mean(axis=(0, 1)), rtol=5e-3)
 
 
+@pytest.mark.slow
 def test_hierarchical_and_exact_transports_plug_in(mi, sphere_scene):
     for transport in ("exact", "hierarchical"):
         scene, image = _render(mi, sphere_scene(res=24, integrator={"transport": transport}))
@@ -166,6 +178,7 @@ def test_bad_parameter_fails_at_load(mi, sphere_scene):
         mi.load_dict(sphere_scene(integrator={"layers": 1}))
 
 
+@pytest.mark.slow
 def test_cancelled_render_raises_instead_of_returning_a_partial_image(mi, sphere_scene):
     """Ctrl-C during Mitsuba's render loop sets the integrator's stop flag (Mitsuba's SIGINT handler): the shading
     loop ends and render() raises KeyboardInterrupt, so no command writes the unfinished image."""
@@ -186,6 +199,7 @@ def _bar(mi, x, z_centre, length, material="wholemilk"):
     return translucent({"type": "cube", "to_world": to_world}, convsss.material(material), boundary="null")
 
 
+@pytest.mark.slow
 def test_visibility_is_decided_by_what_the_camera_sees(mi, sphere_scene, object_mask):
     """The sphere's camera sits at z = 16 looking down -z. A bar whose centre is behind the camera but whose front
     half is in view renders; a bar wholly behind the camera is skipped with a note; neither stops the render."""
@@ -238,6 +252,7 @@ def _two_spheres(mi, sphere_scene, kinds):
     return scene
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kinds", [("instance", "instance"), ("plain", "instance")])
 def test_instanced_spheres_render_like_plain_ones(mi, sphere_scene, object_mask, kinds):
     """Each instance of a translucent shapegroup is an object of its own: alone or beside a plain sphere, every
@@ -264,6 +279,7 @@ def test_absurdly_long_irradiance_is_refused_before_it_starts(mi, sphere_scene):
         scene.integrator().render(scene, scene.sensors()[0])
 
 
+@pytest.mark.slow
 def test_open_disk_and_non_reflecting_channel_render_without_stray_warnings(mi, sphere_scene):
     """A translucent disk renders (one warning: not closed); coke (reduced albedo 0 in blue, R_total = 0) renders
     with its two warnings (optically thin, and under one mean free path across at 4 mm) and no numpy division
@@ -299,6 +315,7 @@ def test_scene_parameters_are_those_of_the_scenes_own_convsss_integrator(mi, sph
     assert scene_parameters(mi.load_dict(other)) is None
 
 
+@pytest.mark.slow
 def test_two_threads_rendering_one_scene_both_get_its_image(mi, sphere_scene):
     """Issue 30, defect 13: two threads rendering one scene failed 2 of 3 runs (Dr.Jit's while_loop, a shader
     reset under the other thread); the second now waits for the first, and both images are the one-thread image."""
@@ -344,6 +361,7 @@ def test_api_misuse_is_one_line(mi, sphere_scene, call, message):
         call(render, scene)
 
 
+@pytest.mark.slow
 def test_mi_traverse_exposes_and_sets_the_numeric_parameters(mi, sphere_scene):
     """Issue 30 (friction): ``mi.traverse(integrator)`` returned nothing. The numeric parameters are there, an update
     is checked as at construction, and the next render uses it."""
@@ -364,6 +382,7 @@ def test_mi_traverse_exposes_and_sets_the_numeric_parameters(mi, sphere_scene):
     assert "integrator.accuracy" in mi.traverse(scene).keys()
 
 
+@pytest.mark.slow
 def test_a_translucent_rectangle_renders(mi, sphere_scene):
     """Issue 30: a rectangle is a mesh without vertex positions to Mitsuba; its samples failed with a KeyError. It
     renders (an open surface, with its warning)."""

@@ -146,6 +146,7 @@ def test_instance_maps_and_inward_winding_keep_the_queries_outward(mi, mirrored)
     assert table.filled.all()
 
 
+@pytest.mark.slow
 def test_render_with_the_mesh_table_matches_the_transport(mi, sphere_scene, tmp_path, monkeypatch):
     """A 4 mm wholemilk icosphere (5 k faces) on a floor at 16 spp: the floor's view of it and the indirect paths
     that come back to it read the table (measured: 3.5 k transport queries against 6.3 k without); the same render

@@ -199,6 +199,7 @@ def test_a_negative_roughness_is_refused(mi, alpha):
         _objects(mi, {"s": shape})
 
 
+@pytest.mark.slow
 def test_a_point_light_inside_a_translucent_object_is_refused(mi):
     """Issue 30, defect 8: a point light inside the object rendered it all black (volpathmis: lit); a light outside
     it, even within its bounding box (beside a sphere's surface, in the box's corner), is fine."""

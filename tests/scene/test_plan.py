@@ -52,6 +52,7 @@ def test_an_object_far_too_large_for_its_units_is_refused_at_once_naming_its_spa
         scene.integrator().prepare(scene, scene.sensors()[0], 0)
 
 
+@pytest.mark.slow
 def test_the_plan_is_what_the_render_draws(mi):
     """The counts and the cell of the plan are those the prepared state holds, and its transport bytes bound the
     far-field mesh the multiscale transport built."""

@@ -30,6 +30,7 @@ def _material(mi, source, unit_mm=1.0, profile="", total="exact"):
     return find_translucent_objects(mi, load_scene(source), unit_mm, profile, total)[0].material
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("boundary", ["null", "dielectric", "roughdielectric"])
 def test_a_preset_by_name_is_the_cli_preset(mi, tmp_path, boundary):
     """XML and dict: exactly the Material of `--mesh bunny --material skin1`."""
@@ -56,6 +57,7 @@ def test_a_preset_converts_to_scene_units(mi, sphere_scene, unit_mm):
     assert float(params["scale"]) == pytest.approx(float(np.max(convsss.material("marble").sigma_t_prime)) * unit_mm)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", COLOR_MODELS)
 def test_color_and_mfp_round_trip(mi, sphere_scene, model):
     """The render-side material's total reflectance under the colour's model (the exact total, or a model's own) is
@@ -94,6 +96,7 @@ def test_colour_in_xml_forms(mi, tmp_path, sphere_scene):
         np.testing.assert_allclose(made.mfp_mm, 1.5, rtol=1e-5)
 
 
+@pytest.mark.slow
 def test_mitsuba_users_path_renders_with_volpathmis_and_convsss(mi, tmp_path, sphere_scene, object_mask):
     """mi.load_file after convsss.register(): the medium is Mitsuba's homogeneous one, which volpathmis renders; the
     convsss integrator renders the same scene."""

@@ -6,6 +6,7 @@ import pytest
 from convsss.scene.reference import BlackPassWarning, render_reference, translucent_pixels
 
 
+@pytest.mark.slow
 def test_passes_average_and_report(mi, sphere_scene):
     scene = mi.load_dict(sphere_scene(res=16))
     seen = []
@@ -17,6 +18,7 @@ def test_passes_average_and_report(mi, sphere_scene):
     np.testing.assert_array_equal(image, render_reference(scene, spp=5, pass_spp=2, seed=1))
 
 
+@pytest.mark.slow
 def test_point_light_behind_a_dielectric_warns_black(mi, sphere_scene):
     """docs/architecture.md: a point light behind a smooth dielectric is unreachable for a path tracer; the pass is
     black over the object's pixels, and says so once. The index-matched sphere under the same light does not warn."""

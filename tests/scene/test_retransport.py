@@ -10,6 +10,7 @@ from convsss.errors import ConvsssError
 from convsss.scene.params import RenderParams
 
 
+@pytest.mark.slow
 def test_prepare_then_render_prepared_is_render_and_retransport_keeps_the_samples(mi, sphere_scene):
     scene = mi.load_dict(sphere_scene(res=24, spp=1))
     integrator = scene.integrator()
@@ -30,6 +31,7 @@ def test_prepare_then_render_prepared_is_render_and_retransport_keeps_the_sample
     assert np.mean(np.array(integrator.render_prepared(seed=3))) < np.mean(image)
 
 
+@pytest.mark.slow
 def test_retransport_refuses_what_changes_the_samples(mi, sphere_scene):
     scene = mi.load_dict(sphere_scene(res=16, spp=1))
     integrator = scene.integrator()

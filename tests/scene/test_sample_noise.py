@@ -28,6 +28,7 @@ def _dense_sphere(mi, sphere_scene, **integrator):
     return mi.load_dict(sphere_scene(material="cream", radius=1.0, res=24, integrator=integrator))
 
 
+@pytest.mark.slow
 def test_a_dense_medium_gets_the_profile_rule_count(mi, sphere_scene):
     from convsss.scene.params import PROFILE_SAMPLES
     from convsss.transport.multiscale import core_width
@@ -53,6 +54,7 @@ def test_a_dense_medium_gets_the_profile_rule_count(mi, sphere_scene):
     assert obj["samples"] == math.ceil(math.sqrt(obj["samples_pixel_rule"])) ** 2
 
 
+@pytest.mark.slow
 def test_the_profile_rule_is_capped_with_a_warning(mi, sphere_scene, monkeypatch):
     """A count above the rule's share of the memory guard is cut to it (never below the pixel rule), with a
     warning; the render goes on."""
@@ -97,6 +99,7 @@ def _exitance_noise(mi, profile_samples, stratified, seeds=(0, 1)):
     return float(relative.mean(axis=0).max()), integrator.stats["objects"][0]["samples"]
 
 
+@pytest.mark.slow
 def test_sample_noise_of_a_small_bunny_stays_below_the_measured_bound(mi):
     """The 4 mm whole-milk bunny at 32 x 32 (pixel footprint 0.33 mm, core width 0.21 mm, no floor, point lights):
     with the defaults (21 316 samples) the exitance's sample noise measured 0.87-1.31 % over six pairs of seeds

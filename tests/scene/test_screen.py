@@ -22,6 +22,7 @@ def _camera(mi, kind, crop):
     return sensor
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("crop", [False, True])
 @pytest.mark.parametrize("kind", ["perspective", "thinlens", "orthographic"])
 def test_projection_takes_pixel_centre_hits_back_to_their_pixels(mi, sphere_scene, kind, crop):
@@ -80,6 +81,7 @@ def _lookup_against_transport(mi, scene):
     return np.abs(got - expected) / expected, known.sum() / hits, hits
 
 
+@pytest.mark.slow
 def test_interpolation_error_is_far_below_the_transports(mi, sphere_scene):
     """A 4 mm wholemilk sphere at 160^2: pixels about a quarter of the profile's core width apart; Eq. V1 known on
     most of the object, its mean error below 0.2 % (measured 0.09 %; the multiscale transport's own aim is 1 %)."""
@@ -92,6 +94,7 @@ def test_interpolation_error_is_far_below_the_transports(mi, sphere_scene):
     assert np.quantile(error, 0.99) < 2e-2
 
 
+@pytest.mark.slow
 def test_pixels_coarser_than_the_profile_are_left_to_the_transport(mi, sphere_scene):
     """A 200 mm marble sphere at 48^2: a pixel spans tens of core widths, so no lane may be interpolated (Eq. V1
     would blur the profile's core). The pixel rule's samples alone (``profile_samples`` 0): the profile rule would
@@ -103,6 +106,7 @@ def test_pixels_coarser_than_the_profile_are_left_to_the_transport(mi, sphere_sc
     assert known == 0.0
 
 
+@pytest.mark.slow
 def test_render_with_the_table_matches_the_transport_everywhere(mi, sphere_scene, monkeypatch):
     """The same render with and without the table (same samples): mean over the object within 0.1 %."""
     import convsss.scene.integrator as integrator_module

@@ -1,6 +1,8 @@
 import numpy as np
+import pytest
 
 
+@pytest.mark.slow
 def test_opaque_shapes_get_mitsubas_direct_light(mi, sphere_scene, object_mask):
     """Off the object, max_depth 2 is direct lighting: the floor matches Mitsuba's `direct` integrator."""
     scene_dict = sphere_scene(floor=True, res=32, spp=16, integrator={"max_depth": 2})
@@ -12,6 +14,7 @@ def test_opaque_shapes_get_mitsubas_direct_light(mi, sphere_scene, object_mask):
     np.testing.assert_allclose(ours[floor].mean(axis=0), theirs[floor].mean(axis=0), rtol=0.01)
 
 
+@pytest.mark.slow
 def test_bounces_pick_up_the_objects_glow(mi, sphere_scene, object_mask):
     images = {}
     for depth in (2, 4):
@@ -21,6 +24,7 @@ def test_bounces_pick_up_the_objects_glow(mi, sphere_scene, object_mask):
     assert images[4][floor].sum() > images[2][floor].sum()
 
 
+@pytest.mark.slow
 def test_paths_ending_at_max_depth_return_evaluated_radiance(tmp_path):
     """A dielectric sphere under a constant environment, box filter, paths cut by max_depth: rendered in a child
     process, since the defect was Dr.Jit aborting the whole process ('dirty variable' in jit_assemble)."""
@@ -48,6 +52,7 @@ def test_paths_ending_at_max_depth_return_evaluated_radiance(tmp_path):
     assert finite == "True" and non_negative == "True" and float(mean) > 0
 
 
+@pytest.mark.slow
 def test_more_recorded_hits_than_room_trace_the_same_paths_again(mi, sphere_scene, monkeypatch):
     """Hits the screen table does not know are recorded in the path loop; with room for almost none, the paths are
     traced again from a copy of the sampler and the image is the same."""
@@ -64,6 +69,7 @@ def test_more_recorded_hits_than_room_trace_the_same_paths_again(mi, sphere_scen
     np.testing.assert_allclose(again, image, rtol=1e-5, atol=1e-7)
 
 
+@pytest.mark.slow
 def test_traced_single_scattering_matches_volpathmis_on_a_low_albedo_sphere(mi, sphere_scene, object_mask):
     """Ketchup's green and blue (reduced albedo 0.07, 0.02) send back almost only once-scattered light. A 4 mm sphere
     is 4-6 mean free paths across there: its curvature lets more of that light out than a half-space does, which the

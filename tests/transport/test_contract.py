@@ -73,6 +73,7 @@ def test_point_source_reproduces_the_profile(kind):
     np.testing.assert_allclose(exitance, milk.profile()(r), rtol=0.02)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_agrees_with_the_exact_sum_deterministic_and_non_negative(kind):
     skin = material("skin1").profile()
@@ -86,6 +87,7 @@ def test_agrees_with_the_exact_sum_deterministic_and_non_negative(kind):
     assert np.linalg.norm(first - exact) / np.linalg.norm(exact) < 0.03
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_relit_equals_a_transport_built_for_the_new_irradiance(kind):
     """Eq. 1 is linear in E: a transport relit with other irradiance at the same samples (what it may keep of their

@@ -82,6 +82,7 @@ def _relative_l2(transport_kwargs, samples, profile, exact, query):
     return np.linalg.norm(m - exact) / np.linalg.norm(exact), t
 
 
+@pytest.mark.slow
 def test_converges_to_exact_sum_as_layers_grow():
     """Convolution vs the exact sum on the same samples (40k on a sphere, directional light, 256 cells across,
     t = 0): relative L2 error over 1000 surface points. Measured on this machine:
@@ -141,6 +142,7 @@ def test_downsampled_layers_stay_close_to_full_resolution():
         assert np.linalg.norm(t.exitance(query) - ref) / np.linalg.norm(ref) < bound
 
 
+@pytest.mark.slow
 def test_total_exitance_of_a_closed_surface():
     """Energy: ∫ M dA over a closed surface against sum(flux) R_total, for a sphere large against the diffusion
     length (skin1, radius 10 mm, uniform E, 256 cells). Measured ratios (R, G, B):
@@ -263,6 +265,7 @@ def test_plane_correction_makes_any_lit_plane_exit_total_reflectance(cos_theta):
         assert np.abs(plain / profile.total_reflectance - 1).max() > 0.05
 
 
+@pytest.mark.slow
 def test_plane_correction_against_the_exact_sum_and_energy():
     """The plane correction on closed surfaces. Relative L2 error against the exact sum (40k samples, 256 cells,
     t = 0), measured on this machine:
@@ -320,6 +323,7 @@ def test_plane_correction_of_an_object_smaller_than_the_profile_is_not_negative(
     assert np.linalg.norm(corrected - exact) / np.linalg.norm(exact) < 1e-3
 
 
+@pytest.mark.slow
 def test_plane_correction_at_silhouettes_is_not_negative():
     """A 10 mm spectralon sphere, 8 layers 2.9 mm (30–60 mean free paths) apart: seen edge-on, the layers
     over-estimate a lit plane by C up to 11x, but a silhouette curves away from its tangent plane, so the layers
@@ -338,6 +342,7 @@ def test_plane_correction_at_silhouettes_is_not_negative():
     assert np.linalg.norm(corrected - exact) < np.linalg.norm(layers - exact)
 
 
+@pytest.mark.slow
 def test_plane_correction_needs_normals_and_a_known_mode():
     """The correction needs the samples' normals where it applies (more than one layer); a flat set has one layer."""
     ball = sphere(500, 3.0)

@@ -60,6 +60,7 @@ def relative_error(samples, name, epsilons, query):
     return np.array(errors), np.array(visits)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["skin1", "wholemilk"])
 def test_matches_exact_and_error_rises_with_epsilon(sphere, name):
     errors, visits = relative_error(sphere, name, EPSILONS, sphere.position[::40])

@@ -94,6 +94,7 @@ def test_clusters_keep_the_flux_and_the_two_sides_of_a_sheet_apart():
     np.testing.assert_array_equal(coarse.side, direct.side)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("radius", [2.0, 20.0])
 def test_converges_to_the_exact_sum_on_spheres_ten_times_apart(radius):
     milk = material("wholemilk").profile()
@@ -117,6 +118,7 @@ def test_queries_off_the_surface_agree_with_the_exact_sum():
     assert _mean_rel(multi, exact) < 0.01
 
 
+@pytest.mark.slow
 def test_the_far_mesh_keeps_the_flux_and_reads_back_a_linear_field_exactly():
     """The quadratic B-spline deposit spreads each point's flux without loss; its read-back reproduces a linear field
     (B-splines reproduce linear functions), so the mesh adds no error of first order."""
@@ -132,6 +134,7 @@ def test_the_far_mesh_keeps_the_flux_and_reads_back_a_linear_field_exactly():
     np.testing.assert_allclose(out[:, 0], 2.0 + view[:, 0] - 0.5 * view[:, 1] + 0.25 * view[:, 2])
 
 
+@pytest.mark.slow
 def test_the_middle_band_is_summed_at_voxel_corners_for_dense_queries_and_at_sparse_ones_directly():
     """Queries denser than the middle band's voxels read it at the voxels' corners, each summed once when first needed
     and kept, so asking in another order gives the same exitance bit for bit; queries sparser than the voxels (fewer
@@ -173,6 +176,7 @@ def bunny_cases():
     return {name: prepare_case(scene_dict(name, 96)) for name in ("bunny4", "bunny40")}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["bunny4", "bunny40"])
 def test_bunny_at_two_sizes_within_one_percent_of_the_exact_sum(bunny_cases, name):
     case = bunny_cases[name]
