@@ -85,8 +85,11 @@ def _files(folder):
                                 + "</transform>" * 20_000 + "</scene>")
     (f / "a.xml").write_text('<scene version="3.0.0"><include filename="b.xml"/></scene>')
     (f / "b.xml").write_text('<scene version="3.0.0"><include filename="a.xml"/></scene>')
-    (f / "inf.xml").write_text(base.replace("<transform name=\"to_world\">",
-                                            "<transform name=\"to_world\"><translate x=\"inf\"/>", 1))
+    shape = base.index("<shape")
+    (f / "inf.xml").write_text(base[:shape] + base[shape:].replace(
+        '<transform name="to_world">', '<transform name="to_world"><translate x="inf"/>', 1))
+    (f / "camera_inf.xml").write_text(base.replace('<transform name="to_world">',
+                                                   '<transform name="to_world"><translate x="inf"/>', 1))
     tetra = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype="<f4")
     table = np.zeros(4, dtype=[("n", "u1"), ("i", "<i4", (3,))])
     table["n"], table["i"] = 3, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3_000_000]]
@@ -95,7 +98,7 @@ def _files(folder):
                                     b"property list uchar int vertex_indices\nend_header\n" + tetra.tobytes()
                                     + table.tobytes())
     cube = "".join(f"v {x} {y} {z}\n" for x in (0, 1) for y in (0, 1) for z in (0, 1))
-    faces = ["1 2 4 3", "5 7 8 6", "2 1 5 6", "3 4 8 7", "1 3 7 5", "2 6 8 4"]  # the third face flipped
+    faces = ["1 2 4 3", "5 7 8 6", "2 6 5 1", "3 4 8 7", "1 3 7 5", "2 6 8 4"]  # the third face flipped
     (f / "mixed.obj").write_text(cube + "".join(f"f {x}\n" for x in faces))
     (f / "huge.csv").write_text("r_mm,R,G,B\n0.1,1,1,1\n1e300,0.001,0.001,0.001\n")
     rough = base.replace('<bsdf type="null">', '<bsdf type="roughdielectric"><float name="alpha" value="-0.3"/>'
@@ -153,7 +156,10 @@ def cases(f):
     yield "14 --color 1,1,1 under exact", cli("render", "--mesh", "bunny", "--color", "1,1,1", "--mfp-mm", 1,
                                               "--color-model", "exact", "--size-mm", 20, "-o", out / "white",
                                               *SMALL), "error", None
-    yield "14 infinite translate", cli("render", f / "inf.xml", "-o", out / "inf", *SMALL), "error", None
+    yield "14 infinite translate of the object", cli("render", f / "inf.xml", "-o", out / "inf", *SMALL), "error", \
+        None
+    yield "14 infinite translate of the camera", cli("render", f / "camera_inf.xml", "-o", out / "caminf", *SMALL), \
+        "error", None
     yield "the scene as written renders", cli("render", f / "base.xml", "-o", out / "base", *SMALL), "ok", None
     busy.close()
 

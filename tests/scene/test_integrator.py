@@ -396,3 +396,12 @@ def test_a_translucent_rectangle_renders(mi, sphere_scene):
         scene = mi.load_dict(scene_dict)
         image = np.array(scene.integrator().render(scene, scene.sensors()[0]))
     assert np.all(np.isfinite(image)) and image[..., :3].max() > 0
+
+
+def test_a_camera_at_infinity_is_one_line(mi, sphere_scene):
+    """Issue 30, defect 14: a camera translated to infinity rendered an empty image with a visibility warning."""
+    scene_dict = sphere_scene(res=8, spp=1)
+    scene_dict["sensor"]["to_world"] = mi.ScalarTransform4f().translate([float("inf"), 0, 0])
+    scene = mi.load_dict(scene_dict)
+    with pytest.raises(convsss.ConvsssError, match="the camera's transform is not finite"):
+        scene.integrator().render(scene, scene.sensors()[0])

@@ -24,10 +24,13 @@ RAYS_PER_BATCH = 1 << 20
 
 
 def check_camera(sensor):
-    """A one-line error unless ``sensor`` is a projective camera (the layers need an image plane)."""
+    """A one-line error unless ``sensor`` is a projective camera (the layers need an image plane) at a finite
+    place."""
     if not isinstance(sensor, mi.ProjectiveCamera):
         raise ConvsssError(f"the convsss integrator renders through a camera (perspective, thinlens, orthographic); "
                            f"this scene's sensor is a {sensor.class_name()!r}")
+    if not np.all(np.isfinite(np.array(sensor.world_transform().matrix, dtype=np.float64))):
+        raise ConvsssError("the camera's transform is not finite (a translate, scale or look_at at infinity or NaN)")
 
 
 def sensor_frame(sensor, unit_mm):
