@@ -6,7 +6,8 @@ import pytest
 
 import convsss
 from convsss.profiles import BetterDipoleProfile
-from convsss.profiles.slab import slab_tally, tally_albedo, volpath_slab_albedo
+from convsss.profiles.slab import slab_tally, tally_albedo
+from convsss.scene.reference import volpath_slab_albedo
 
 
 def test_same_seed_same_tally_whatever_the_thread_count():

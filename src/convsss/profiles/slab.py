@@ -16,10 +16,11 @@ diffuse_transmittance`); so the measured profile is the exitance per unit transm
 
 Why a tally instead of a camera: a camera path reaches a narrow beam through a smooth dielectric only by chance, and
 a point or directional light not at all (``shared/notes/mitsuba3.md``). The tally is checked against
-``volpathmis`` on the same material in a Mitsuba box (:func:`volpath_slab_albedo`, ``tests/test_slab.py``): by
-reciprocity, a radiance meter looking straight down at a slab under a uniform sky of radiance 1 reads the slab's
-albedo at normal incidence, ``F_r(eta, 1) + F_t(eta, 1) sum W / N``, and, with a black disk of radius ``r_1`` just
-above the surface, ``F_t(eta, 1) sum_{r > r_1} W / N``: the tally's radial distribution, through Mitsuba.
+``volpathmis`` on the same material in a Mitsuba box (:func:`convsss.scene.reference.volpath_slab_albedo`,
+``tests/test_slab.py``): by reciprocity, a radiance meter looking straight down at a slab under a uniform sky of
+radiance 1 reads the slab's albedo at normal incidence, ``F_r(eta, 1) + F_t(eta, 1) sum W / N``, and, with a black
+disk of radius ``r_1`` just above the surface, ``F_t(eta, 1) sum_{r > r_1} W / N``: the tally's radial distribution,
+through Mitsuba.
 """
 
 import numba
@@ -27,7 +28,6 @@ import numpy as np
 
 from ..errors import ConvsssError
 from ..fresnel import check_eta, diffuse_transmittance, fresnel_reflectance
-from ..signals import mitsuba_render
 
 #: Fresnel table resolution in cos (the walk looks ``F_r`` up instead of carrying a second Fresnel formula).
 FRESNEL_TABLE = 4097
@@ -203,13 +203,13 @@ def slab_tally(albedo, eta, photons=1 << 20, seed=0, incidence=1.0):
     }
 
 
-# ---- The same slab in Mitsuba's volpathmis, for checking the tally ----------------------------------------------
+# ---- What the same slab in Mitsuba's volpathmis reads, for checking the tally -----------------------------------
 
 def tally_albedo(material, occluder_mm=0.0, photons=1 << 18, seed=0):
     """The slab's albedo at normal incidence per channel from the tally: ``F_r(eta, 1) + F_t(eta, 1) x`` (the escaped
     flux per transmitted flux); with ``occluder_mm > 0``, only ``F_t(eta, 1) x`` for the flux that leaves beyond that
-    radius (what :func:`volpath_slab_albedo` reads under a black disk). Within a bin the exits count as uniform in
-    area."""
+    radius (what :func:`~convsss.scene.reference.volpath_slab_albedo` reads under a black disk). Within a bin the
+    exits count as uniform in area."""
     out = np.empty(3)
     specular = float(fresnel_reflectance(material.eta, 1.0))
     for c in range(3):
@@ -222,46 +222,3 @@ def tally_albedo(material, occluder_mm=0.0, photons=1 << 18, seed=0):
         else:
             out[c] = specular + (1.0 - specular) * t["escaped"]
     return out
-
-
-def volpath_slab_albedo(material, occluder_mm=0.0, spp=1 << 16, seed=0):
-    """Mitsuba ``volpathmis`` (Russian roulette off) on a flat box of ``material`` (a smooth dielectric boundary of
-    its ``eta``, 40 diffusion lengths wide, 20 deep, at least 200 and 100 mean free paths) under a uniform sky of
-    radiance 1: a radiance meter just above the centre looking straight down reads, by reciprocity, the albedo at
-    normal incidence; with ``occluder_mm > 0`` a black disk of that radius just above the meter hides the exits
-    within it (and the specular reflection).
-
-    Returns
-    -------
-    numpy.ndarray, shape (3,)
-    """
-    from ..backend import load_mitsuba
-    from ..scene.materials import translucent
-
-    mi = load_mitsuba()
-    T = mi.ScalarTransform4f
-    mfp = float(np.max(material.mfp_mm))
-    reach = float(np.max(np.where(material.sigma_tr > 0, 1.0 / np.maximum(material.sigma_tr, 1e-300), np.inf)))
-    width = min(max(40.0 * reach, 200.0 * mfp), 2000.0 * mfp)
-    depth = 0.5 * width
-    box = translucent({"type": "cube", "to_world": T().translate([0, 0, -0.5 * depth]).scale(
-        [0.5 * width, 0.5 * width, 0.5 * depth])}, material, boundary="dielectric")
-    lift = 1e-4 * mfp
-    scene = {
-        "type": "scene",
-        "integrator": {"type": "volpathmis", "max_depth": -1, "rr_depth": 1 << 30},
-        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
-        "slab": box,
-        "meter": {"type": "radiancemeter", "origin": [0.0, 0.0, lift], "direction": [0.0, 0.0, -1.0],
-                  "film": {"type": "hdrfilm", "width": 1, "height": 1, "rfilter": {"type": "box"},
-                           "pixel_format": "rgb"},
-                  "sampler": {"type": "independent", "sample_count": int(spp)}},
-    }
-    if occluder_mm > 0:
-        scene["occluder"] = {"type": "disk", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb",
-                                                                                         "value": [0.0] * 3}},
-                             "to_world": T().translate([0.0, 0.0, 2.0 * lift]).scale(float(occluder_mm))}
-    loaded = mi.load_dict(scene)
-    with mitsuba_render(loaded.integrator()):
-        image = mi.render(loaded, seed=int(seed), spp=int(spp))
-    return np.array(image, dtype=np.float64).reshape(-1)[:3]

@@ -111,3 +111,45 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None, sensor=0):
         if on_pass is not None:
             on_pass(total / done, done, k, n_passes)
     return total / done
+
+
+def volpath_slab_albedo(material, occluder_mm=0.0, spp=1 << 16, seed=0):
+    """Mitsuba ``volpathmis`` (Russian roulette off) on a flat box of ``material`` (a smooth dielectric boundary of
+    its ``eta``, 40 diffusion lengths wide, 20 deep, at least 200 and 100 mean free paths) under a uniform sky of
+    radiance 1: a radiance meter just above the centre looking straight down reads, by reciprocity, the albedo at
+    normal incidence; with ``occluder_mm > 0`` a black disk of that radius just above the meter hides the exits
+    within it (and the specular reflection).
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,)
+    """
+    from .materials import translucent
+
+    mi = load_mitsuba()
+    T = mi.ScalarTransform4f
+    mfp = float(np.max(material.mfp_mm))
+    reach = float(np.max(np.where(material.sigma_tr > 0, 1.0 / np.maximum(material.sigma_tr, 1e-300), np.inf)))
+    width = min(max(40.0 * reach, 200.0 * mfp), 2000.0 * mfp)
+    depth = 0.5 * width
+    box = translucent({"type": "cube", "to_world": T().translate([0, 0, -0.5 * depth]).scale(
+        [0.5 * width, 0.5 * width, 0.5 * depth])}, material, boundary="dielectric")
+    lift = 1e-4 * mfp
+    scene = {
+        "type": "scene",
+        "integrator": {"type": "volpathmis", "max_depth": -1, "rr_depth": 1 << 30},
+        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
+        "slab": box,
+        "meter": {"type": "radiancemeter", "origin": [0.0, 0.0, lift], "direction": [0.0, 0.0, -1.0],
+                  "film": {"type": "hdrfilm", "width": 1, "height": 1, "rfilter": {"type": "box"},
+                           "pixel_format": "rgb"},
+                  "sampler": {"type": "independent", "sample_count": int(spp)}},
+    }
+    if occluder_mm > 0:
+        scene["occluder"] = {"type": "disk", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb",
+                                                                                         "value": [0.0] * 3}},
+                             "to_world": T().translate([0.0, 0.0, 2.0 * lift]).scale(float(occluder_mm))}
+    loaded = mi.load_dict(scene)
+    with mitsuba_render(loaded.integrator()):
+        image = mi.render(loaded, seed=int(seed), spp=int(spp))
+    return np.array(image, dtype=np.float64).reshape(-1)[:3]
