@@ -54,3 +54,25 @@ def test_the_ipynb_jupyter_opens_holds_the_notebook_cells():
     source = jupytext.read(NOTEBOOK)
     shipped = jupytext.read(NOTEBOOK.with_suffix(".ipynb"))
     assert [(c.cell_type, c.source) for c in shipped.cells] == [(c.cell_type, c.source) for c in source.cells]
+
+
+@pytest.mark.slow
+def test_the_readme_python_example_runs(tmp_path, monkeypatch):
+    """The README's Python example, as written, on a scene `convsss scene` writes (its integrator is volpathmis: the
+    example names convsss's)."""
+    import re
+
+    from click.testing import CliRunner
+
+    from convsss.cli import cli
+
+    readme = (NOTEBOOK.parents[1] / "README.md").read_text()
+    code = re.search(r"## In Python\n\n```python\n(.*?)```", readme, re.S).group(1)
+    result = CliRunner().invoke(cli, ["scene", "--material", "wholemilk", "--size-mm", "20", "--boundary", "null",
+                                      "--width", "24", "--height", "24", "--spp", "1", "-o",
+                                      str(tmp_path / "scene.xml")])
+    assert result.exit_code == 0, result.output
+    monkeypatch.chdir(tmp_path)
+    namespace = {}
+    exec(compile(code, "README.md", "exec"), namespace)
+    assert namespace["image"].shape == (24, 24, 3) and (tmp_path / "out.exr").stat().st_size > 0
