@@ -31,6 +31,11 @@ class OpticallyThinWarning(UserWarning):
     """A channel scatters too little for the diffusion approximation to be accurate."""
 
 
+#: The largest coefficient a material may have, in 1/mm (a mean free path of 1e-30 mm; larger ones overflow the
+#: profiles' float arithmetic, which then printed numpy warnings before the refusal).
+MAX_COEFFICIENT = 1e30
+
+
 def _coefficients(name, value):
     """A finite, non-negative RGB triple (a scalar is broadcast), or a one-line error naming the bad value."""
     try:
@@ -38,9 +43,9 @@ def _coefficients(name, value):
     except (TypeError, ValueError):
         raise ConvsssError(f"{name}={value!r} is not allowed: give one number or three (R, G, B)") from None
     for c, x in enumerate(arr):
-        if not np.isfinite(x) or x < 0:
+        if not np.isfinite(x) or x < 0 or x > MAX_COEFFICIENT:
             raise ConvsssError(f"{name} = {float(x)!r} in channel {CHANNELS[c]} is not allowed: "
-                               "coefficients must be finite and >= 0 (1/mm)")
+                               f"coefficients must be finite, >= 0 and at most {MAX_COEFFICIENT:g} (1/mm)")
     return arr
 
 
