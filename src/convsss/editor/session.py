@@ -70,14 +70,13 @@ def _check_types(changes):
         if value is None:
             continue
         if key in ("preset", "model"):
-            ok = isinstance(value, str)
+            ok, kind = isinstance(value, str), "a name"
         elif key in ("eta", "accuracy"):
-            ok = number(value)
+            ok, kind = number(value), "a number"
         else:
             ok = number(value) or (isinstance(value, list) and len(value) == 3 and all(map(number, value)))
+            kind = "one number or three (R, G, B)"
         if not ok:
-            kind = "a name" if key in ("preset", "model") else "a number" if key in ("eta", "accuracy") else \
-                "one number or three (R, G, B)"
             raise ConvsssError(f"{key}={value!r} is not allowed: give {kind}")
 
 

@@ -138,12 +138,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     def __init__(self, props):
         super().__init__(props)
         self.params = RenderParams.from_properties(props)
-        if self.params.ignored():
+        ignored = self.params.ignored()
+        if ignored:
             owners = {p.name: owner for p, owner in integrator_parameters()}
-            warnings.warn(f"{', '.join(f'{n} ({owners[n]} transport)' for n in self.params.ignored())}: not a "
-                          f"parameter of the {self.params.transport} transport this integrator renders with, so it "
-                          f"has no effect (set transport={owners[self.params.ignored()[0]]!r} to use it)",
-                          IgnoredParameterWarning, stacklevel=2)
+            warnings.warn(f"{', '.join(f'{n} ({owners[n]} transport)' for n in ignored)}: not a parameter of the "
+                          f"{self.params.transport} transport this integrator renders with, so it has no effect (set "
+                          f"transport={owners[ignored[0]]!r} to use it)", IgnoredParameterWarning, stacklevel=2)
         self.samples_per_pass = int(props["samples_per_pass"]) if "samples_per_pass" in props else -1
         self.stats = {}
         #: Optional callable ``progress(stage)`` told when a stage starts (the command line's progress display).

@@ -159,8 +159,9 @@ def _collect_inputs(path, search, defaults, found, including):
         root = ElementTree.parse(path).getroot()
     except (ElementTree.ParseError, OSError, RecursionError) as error:
         raise ConvsssError(f"cannot read scene {str(path)!r}: {error}") from None
-    if _depth(root) > MAX_XML_DEPTH:
-        raise ConvsssError(f"scene {str(path)!r} nests its elements {_depth(root)} levels deep, more than the "
+    depth = _depth(root)
+    if depth > MAX_XML_DEPTH:
+        raise ConvsssError(f"scene {str(path)!r} nests its elements {depth} levels deep, more than the "
                            f"{MAX_XML_DEPTH} a scene needs (Mitsuba's loader would overflow its stack)")
 
     def value(element, attribute):

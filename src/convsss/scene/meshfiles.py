@@ -13,6 +13,8 @@ import numpy as np
 
 from ..errors import ConvsssError
 
+#: The names a PLY face element gives its list of vertex indices.
+INDEX_LISTS = ("vertex_indices", "vertex_index")
 #: PLY scalar types and their numpy codes.
 PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2", "ushort": "u2",
              "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4", "float": "f4",
@@ -76,7 +78,7 @@ def _ply_layout(path, header):
     before = elements[:names.index("face")]
     if any(p[0] == "list" for e in before for p in e[2]):
         return None  # an element before the faces with variable-length records: not read here
-    if not any(p[0] == "list" and p[-1] in ("vertex_indices", "vertex_index") for p in face[2]):
+    if not any(p[0] == "list" and p[-1] in INDEX_LISTS for p in face[2]):
         return None
     return form, vertices, before, face
 
@@ -97,7 +99,7 @@ def _ascii_faces(body, before, face):
             if at >= len(words) or not re.fullmatch(r"\d+", words[at]):
                 return None
             n = int(words[at])
-            if p[-1] in ("vertex_indices", "vertex_index"):
+            if p[-1] in INDEX_LISTS:
                 try:
                     indices.extend(int(float(w)) for w in words[at + 1:at + 1 + n])
                 except ValueError:
@@ -124,15 +126,15 @@ def _binary_faces(body, order, before, face):
             if count_type is None or item_type is None or at >= len(body):
                 return None
             n = int(np.frombuffer(body, dtype=order + count_type, count=1, offset=at)[0])
-            fields += [(f"n{k}", order + count_type), (p[-1], order + item_type, (n,))]
+            fields += [(f"{p[-1]} count", order + count_type), (p[-1], order + item_type, (n,))]
         else:
             fields.append((f"p{k}", order + PLY_TYPES.get(p[0], "f4")))
     record = np.dtype(fields)
     if offset + faces * record.itemsize > len(body):
         return None
     table = np.frombuffer(body, dtype=record, count=faces, offset=offset)
-    name = next(p[-1] for p in props if p[0] == "list" and p[-1] in ("vertex_indices", "vertex_index"))
-    counts = table[f"n{next(k for k, p in enumerate(props) if p[-1] == name)}"].astype(np.int64)
+    name = next(p[-1] for p in props if p[0] == "list" and p[-1] in INDEX_LISTS)
+    counts = table[f"{name} count"].astype(np.int64)
     if np.any(counts != counts[0]):
         return None
     return counts, table[name].astype(np.int64).reshape(-1)

@@ -231,11 +231,10 @@ def _check_span(obj, unit_mm):
                       stacklevel=4)
 
 
-def check_lights_outside(mi, scene, objects):
+def check_lights_outside(mi, scene, objects, unit_mm):
     """A one-line error for a point or spot light inside a closed translucent object: the diffusion model lights an
     object through its surface from outside (it would render the object black). Inside is decided by the parity of
     the object's surface crossings along a ray from the light."""
-
     for emitter in scene.emitters():
         params = mi.traverse(emitter)
         if "position" in params:
@@ -245,7 +244,7 @@ def check_lights_outside(mi, scene, objects):
         else:
             continue
         for obj in objects:
-            lo, hi = world_bbox(obj.shape, obj.to_world)  # scene units, as the light's position
+            lo, hi = obj.bbox_mm / unit_mm  # scene units, as the light's position
             if not (obj.closed and np.all(position >= lo) and np.all(position <= hi)):
                 continue
             ray = mi.Ray3f(mi.Point3f(*(float(x) for x in position)), mi.Vector3f(0.5773503, 0.5773503, 0.5773503))
@@ -458,7 +457,7 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
     if not objects:
         raise ConvsssError("the scene has no translucent shape: give a shape an interior 'homogeneous' medium and a "
                            "null, dielectric or roughdielectric BSDF")
-    check_lights_outside(mi, scene, objects)
+    check_lights_outside(mi, scene, objects, unit_mm)
     names = {o.name for o in objects} | {o.name.split("/")[0] for o in objects}
     unknown = sorted(set(per_object) - names)
     if unknown:

@@ -137,7 +137,6 @@ def volpath_slab_albedo(material, occluder_mm=0.0, spp=1 << 16, seed=0):
     lift = 1e-4 * mfp
     scene = {
         "type": "scene",
-        "integrator": {"type": "volpathmis", "max_depth": -1, "rr_depth": 1 << 30},
         "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
         "slab": box,
         "meter": {"type": "radiancemeter", "origin": [0.0, 0.0, lift], "direction": [0.0, 0.0, -1.0],
@@ -149,7 +148,7 @@ def volpath_slab_albedo(material, occluder_mm=0.0, spp=1 << 16, seed=0):
         scene["occluder"] = {"type": "disk", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb",
                                                                                          "value": [0.0] * 3}},
                              "to_world": T().translate([0.0, 0.0, 2.0 * lift]).scale(float(occluder_mm))}
-    loaded = mi.load_dict(scene)
-    with mitsuba_render(loaded.integrator()):
-        image = mi.render(loaded, seed=int(seed), spp=int(spp))
+    integrator = reference_integrator()
+    with mitsuba_render(integrator):
+        image = mi.render(mi.load_dict(scene), integrator=integrator, seed=int(seed), spp=int(spp))
     return np.array(image, dtype=np.float64).reshape(-1)[:3]
