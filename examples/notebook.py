@@ -125,7 +125,7 @@ means = {}
 for mfp in (0.5, 2.0, 8.0):  # the same colour, light travelling farther and farther
     k = obj.material.mfp_mm / mfp  # per channel: sigma_t' = 1 / mfp
     new = replace(obj.material, sigma_s_prime=obj.material.sigma_s_prime * k, sigma_a=obj.material.sigma_a * k)
-    integrator.retransport(objects=[replace(obj, material=new, profile=new.profile())])
+    integrator.retransport(objects=[replace(obj, material=new, profile=convsss.model_profile("dipole", new))])
     edited = np.asarray(integrator.render_prepared())[..., :3]
     mi.util.write_bitmap(str(OUT / f"mfp-{mfp:g}mm.png"), edited)
     show(OUT / f"mfp-{mfp:g}mm.png")
@@ -141,6 +141,7 @@ for mfp in (0.5, 2.0, 8.0):  # the same colour, light travelling farther and far
 from convsss.profiles.models import PROFILE_MODELS  # noqa: E402
 from convsss.profiles.plot import plot_profiles  # noqa: E402
 
-plot_profiles([("wholemilk", [(model, milk.profile(model)) for model in PROFILE_MODELS])], OUT / "profiles.png")
+plot_profiles([("wholemilk", [(model, convsss.model_profile(model, milk)) for model in PROFILE_MODELS])],
+              OUT / "profiles.png")
 show(OUT / "profiles.png")
 print("wrote", sorted(p.name for p in OUT.iterdir()))

@@ -4,7 +4,7 @@ from scipy.integrate import quad
 
 from convsss.errors import ConvsssError
 from convsss.materials import catalog
-from convsss.profiles import DipoleProfile, TabulatedProfile
+from convsss.profiles import DipoleProfile, TabulatedProfile, model_profile
 
 # shared/data/materials/README.md: check values of the classic dipole, "4 significant digits".
 CHECK = {
@@ -38,7 +38,7 @@ def _numeric_total(p, c):
 @pytest.mark.parametrize("m", [m for m in catalog() if np.all(m.sigma_a > 0) and np.all(m.sigma_s_prime > 0)],
                          ids=lambda m: m.name)
 def test_integral_of_profile_equals_closed_form(m):
-    p = m.profile()
+    p = model_profile("dipole", m)
     for c in range(3):
         assert _numeric_total(p, c) == pytest.approx(p.total_reflectance[c], rel=1e-4)
 

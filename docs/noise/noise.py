@@ -32,6 +32,7 @@ import numpy as np
 import convsss
 from convsss.backend import load_mitsuba
 from convsss.compare import FLOOR
+from convsss.profiles import material_from_color
 from convsss.scene.quick import demo_mesh, quick_scene
 
 mi = load_mitsuba()
@@ -45,10 +46,9 @@ def scene_of(name, width):
     """The quick scene of ``NAME[-area]``, NAME a material key and the bunny's size in mm (``milk40``, ``dense10``)."""
     import re
 
-    from convsss.materials import Material
 
     key, size = re.fullmatch(r"([a-z]+)(\d+(?:\.\d+)?)", name.split("-")[0]).groups()
-    material = Material.from_color([0.8, 0.6, 0.4], 0.1) if key == "dense" else convsss.material(MATERIALS[key])
+    material = material_from_color([0.8, 0.6, 0.4], 0.1) if key == "dense" else convsss.material(MATERIALS[key])
     area = name.endswith("-area")
     d = quick_scene(demo_mesh(), material, float(size), width, width, 1, floor=not area)
     if area:

@@ -8,10 +8,10 @@ __version__ = "0.1.0"
 
 from .errors import ConvsssError
 from .materials import Material, catalog, material
-from .profiles import DipoleProfile, Profile, TabulatedProfile
+from .profiles import DipoleProfile, Profile, TabulatedProfile, material_from_color, model_profile
 
 __all__ = ["ConvsssError", "DipoleProfile", "Material", "Profile", "TabulatedProfile", "catalog", "material",
-           "register", "render", "__version__"]
+           "material_from_color", "model_profile", "register", "render", "__version__"]
 
 
 def register(variant=None):

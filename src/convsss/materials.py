@@ -21,7 +21,9 @@ import numpy as np
 
 from .errors import ConvsssError
 from .fresnel import check_eta
-from .profiles import CHANNELS
+
+#: The colour channels of every per-channel quantity.
+CHANNELS = "RGB"
 
 #: Reduced albedo below which a channel is not optically thick enough for the diffusion approximation.
 THIN_ALBEDO = 0.5
@@ -123,25 +125,6 @@ class Material:
         with np.errstate(divide="ignore"):
             return 1.0 / self.sigma_tr
 
-    def profile(self, model="dipole"):
-        """The profile of this material by ``model`` (:data:`~convsss.profiles.PROFILE_MODELS`): by default the
-        classic dipole (Jensen et al. 2001), the paper's."""
-        from .profiles import model_profile
-
-        return model_profile(model, self)
-
-    @classmethod
-    def from_color(cls, color, mfp_mm, eta=1.3, model=None, name="custom"):
-        """The material whose ``model`` profile has total reflectance ``color`` (per channel) and reduced mean free
-        path ``mfp_mm``: :func:`convsss.profiles.models.material_from_color`."""
-        from .profiles import material_from_color
-
-        return material_from_color(color, mfp_mm, eta, model, name)
-
-    @property
-    def total_reflectance(self):
-        return self.profile().total_reflectance
-
     def thin_channels(self):
         """Channels whose reduced albedo is below :data:`THIN_ALBEDO` (the diffusion approximation is poor there)."""
         return [CHANNELS[c] for c in range(3) if self.albedo_prime[c] < THIN_ALBEDO]
@@ -155,7 +138,7 @@ class Material:
         return self
 
     def summary(self):
-        """A JSON-ready dict: coefficients, eta, total diffuse reflectance, mfp and diffusion length (mm)."""
+        """A JSON-ready dict: coefficients, eta, mfp and diffusion length (mm)."""
         def listed(a):
             return [None if not np.isfinite(x) else float(x) for x in a]
 
@@ -164,7 +147,6 @@ class Material:
             "sigma_s_prime": listed(self.sigma_s_prime),
             "sigma_a": listed(self.sigma_a),
             "eta": self.eta,
-            "total_reflectance": listed(self.total_reflectance),
             "mfp_mm": listed(self.mfp_mm),
             "diffusion_length_mm": listed(self.diffusion_length_mm),
         }

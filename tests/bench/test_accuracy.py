@@ -9,6 +9,7 @@ from convsss.bench.pareto import headline, headline_text, pareto_front, time_at_
 from convsss.bench.transport import lit_sphere
 from convsss.cli import cli
 from convsss.materials import material
+from convsss.profiles import model_profile
 from convsss.samples import ViewFrame
 
 ROW_KEYS = {"scene", "transport", "method", "correction", "label", "layers", "downsample", "threshold", "epsilon",
@@ -23,8 +24,9 @@ def sphere_rows():
     points = front[np.random.default_rng(1).choice(len(front), 300, replace=False)]
     configs = convolution_configs((2, 8), (1.0,), (0.001,)) + hierarchical_configs((0.01, 0.2, 2.0))
     frame = ViewFrame.look_at([0, 0, 100], [0, 0, 0])
-    return bench_points(samples, points, material("wholemilk").profile(), frame, 20.0 / 64, configs, runs=2,
-                        scene="sphere", normals=points / np.linalg.norm(points, axis=1, keepdims=True))
+    milk = model_profile("dipole", material("wholemilk"))
+    return bench_points(samples, points, milk, frame, 20.0 / 64, configs, runs=2, scene="sphere",
+                        normals=points / np.linalg.norm(points, axis=1, keepdims=True))
 
 
 @pytest.mark.slow

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from convsss.errors import ConvsssError
+from convsss.profiles import model_profile
 
 #: Render parameters under which the samples' irradiance does not depend on the albedo: no gain at all (normal
 #: incidence, and single scattering in the profile, so indirect light needs no share of it either).
@@ -77,7 +78,7 @@ def test_retransport_refuses_a_new_albedo_with_oblique_incidence(session):
     obj = s.integrator.prepared.objects[0]
     material = replace(obj.material, sigma_a=obj.material.sigma_a * 2)
     with pytest.raises(ConvsssError, match="albedo"):
-        s.integrator.retransport([replace(obj, material=material, profile=material.profile())])
+        s.integrator.retransport([replace(obj, material=material, profile=model_profile("dipole", material))])
 
 
 @pytest.mark.slow

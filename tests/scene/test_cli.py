@@ -15,6 +15,7 @@ from click.testing import CliRunner
 
 from convsss.cli import cli
 from convsss.image import read_image, read_layers
+from convsss.profiles import model_profile
 
 
 def run(*args):
@@ -492,14 +493,14 @@ def test_sigterm_ends_render_as_ctrl_c_does(tmp_path):
 
 @pytest.mark.slow
 def test_render_reference_and_scene_take_a_colour_and_mfp(tmp_path):
-    """--color/--mfp-mm instead of --material: the object's material is Material.from_color's (under the default
+    """--color/--mfp-mm instead of --material: the object's material is material_from_color's (under the default
     model at the boundary's eta), in render's stats, in the scene written and in reference."""
     import convsss
     from convsss.scene.loading import load_scene
     from convsss.scene.objects import find_translucent_objects
 
     colour = ("--color", "0.8,0.5,0.3", "--mfp-mm", "1,2,3")
-    expected = convsss.Material.from_color([0.8, 0.5, 0.3], [1, 2, 3], eta=1.4)
+    expected = convsss.material_from_color([0.8, 0.5, 0.3], [1, 2, 3], eta=1.4)
     stats = tmp_path / "r.json"
     result = run("render", "--mesh", "bunny", *colour, "--eta", 1.4, "--size-mm", 20, "--width", 32, "--height", 24,
                  "--spp", 1, "-o", tmp_path / "r", "--stats", stats, "--no-progress")
@@ -515,7 +516,7 @@ def test_render_reference_and_scene_take_a_colour_and_mfp(tmp_path):
     assert result.exit_code == 0, result.output
     assert '<medium type="homogeneous"' in out.read_text()  # plain Mitsuba loads it
     made = find_translucent_objects(convsss.register(), load_scene(out))[0].material
-    np.testing.assert_allclose(made.profile("pbd").total_reflectance, [0.8, 0.5, 0.3], atol=1e-3)
+    np.testing.assert_allclose(model_profile("pbd", made).total_reflectance, [0.8, 0.5, 0.3], atol=1e-3)
     np.testing.assert_allclose(made.mfp_mm, [1, 2, 3], rtol=1e-5)
     assert made.eta == 1.0  # a null boundary is index-matched: the colour is inverted at eta 1
 

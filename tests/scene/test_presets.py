@@ -7,6 +7,7 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
+from convsss.profiles import model_profile
 from convsss.profiles.models import COLOR_MODELS, color_of
 from convsss.scene.loading import load_scene
 from convsss.scene.materials import boundary_dict
@@ -125,7 +126,7 @@ def test_the_example_scene_names_a_preset_and_a_colour(mi):
     np.testing.assert_allclose(bunny.sigma_s_prime, skin.sigma_s_prime, rtol=1e-6)
     np.testing.assert_allclose(bunny.sigma_a, skin.sigma_a, rtol=1e-5)
     ball = objects["ball"].material
-    np.testing.assert_allclose(ball.profile("dipole").total_reflectance, [0.8, 0.45, 0.3], atol=1e-3)
+    np.testing.assert_allclose(model_profile("dipole", ball).total_reflectance, [0.8, 0.45, 0.3], atol=1e-3)
     np.testing.assert_allclose(ball.mfp_mm, 2.0, rtol=1e-5)
     assert objects["ball"].eta == pytest.approx(1.3) and objects["bunny"].eta == pytest.approx(1.3)
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from convsss.errors import ConvsssError
+from convsss.profiles import model_profile
 from convsss.scene.params import RenderParams
 
 
@@ -25,8 +26,8 @@ def test_prepare_then_render_prepared_is_render_and_retransport_keeps_the_sample
     assert set(integrator.stats["seconds"]) == {"transport", "screen"}
     assert np.array_equal(np.array(integrator.render_prepared(seed=3)), image)
     obj = state.objects[0]
-    darker = dataclasses.replace(obj, profile=dataclasses.replace(obj.material, sigma_a=obj.material.sigma_a * 4)
-                                 .profile())
+    darker = dataclasses.replace(obj, profile=model_profile(
+        "dipole", dataclasses.replace(obj.material, sigma_a=obj.material.sigma_a * 4)))
     integrator.retransport([darker])
     assert np.mean(np.array(integrator.render_prepared(seed=3))) < np.mean(image)
 

@@ -8,6 +8,7 @@ import pytest
 
 from convsss import material
 from convsss.errors import ConvsssError
+from convsss.profiles import model_profile
 from convsss.samples import IrradianceSamples, ViewFrame
 from convsss.transport import TRANSPORTS, make_transport
 
@@ -49,7 +50,7 @@ def test_every_transport_registers_itself_with_declared_parameters():
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_slab_exits_total_reflectance(kind):
-    skin = material("skin1").profile()
+    skin = model_profile("dipole", material("skin1"))
     slab = _slab(25.0, 0.25)
     centre = np.array([[0.0, 0.0, 0.0], [0.5, -0.5, 0.0]])
     exitance = _make(kind, slab, skin).exitance(centre)
@@ -69,14 +70,14 @@ def test_point_source_reproduces_the_profile(kind):
     source = IrradianceSamples(position, 1.0, irradiance, np.tile([0.0, 0.0, 1.0], (len(position), 1)))
     r = np.arange(3, 40) * cell
     grid = {"resolution": None, "cell_size": cell} if kind == "convolution" else {}
-    exitance = _make(kind, source, milk.profile(), **grid).exitance(np.stack([r, 0 * r, 0 * r], axis=1))
-    np.testing.assert_allclose(exitance, milk.profile()(r), rtol=0.02)
+    exitance = _make(kind, source, model_profile("dipole", milk), **grid).exitance(np.stack([r, 0 * r, 0 * r], axis=1))
+    np.testing.assert_allclose(exitance, model_profile("dipole", milk)(r), rtol=0.02)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_agrees_with_the_exact_sum_deterministic_and_non_negative(kind):
-    skin = material("skin1").profile()
+    skin = model_profile("dipole", material("skin1"))
     samples = _sphere()
     points, normals = samples.position[::7], samples.normal[::7]
     exact = make_transport("exact", samples, skin).exitance(points)
@@ -92,7 +93,7 @@ def test_agrees_with_the_exact_sum_deterministic_and_non_negative(kind):
 def test_relit_equals_a_transport_built_for_the_new_irradiance(kind):
     """Eq. 1 is linear in E: a transport relit with other irradiance at the same samples (what it may keep of their
     places) answers as one built for it, and the original is left as it was."""
-    skin = material("skin1").profile()
+    skin = model_profile("dipole", material("skin1"))
     samples = _sphere()
     points = samples.position[::7]
     other = samples.irradiance * np.linspace(0.2, 2.0, len(samples))[:, None] + [0.0, 0.1, 0.3]
@@ -106,7 +107,7 @@ def test_relit_equals_a_transport_built_for_the_new_irradiance(kind):
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_unknown_and_bad_parameters_fail_in_one_line(kind):
-    skin = material("skin1").profile()
+    skin = model_profile("dipole", material("skin1"))
     with pytest.raises(ConvsssError, match=f"the {kind} transport has no parameter 'bogus'"):
         make_transport(kind, _sphere(100), skin, FRAME, bogus=1)
     for p in TRANSPORTS[kind].parameters:
@@ -122,7 +123,7 @@ def test_planned_bytes_are_known_before_the_samples_and_bound_what_is_built(kind
     sample exists: a number >= 0, at least the structures the built transport holds (the multiscale far-field
     spectra, the convolution's layers) and not many times more."""
     cls = TRANSPORTS[kind]
-    skin = material("skin1").profile()
+    skin = model_profile("dipole", material("skin1"))
     sphere = _sphere(radius=3.0)
     view = FRAME.to_view(sphere.position)
     bounds = np.array([view.min(axis=0), view.max(axis=0)])

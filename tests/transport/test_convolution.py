@@ -5,6 +5,7 @@ import pytest
 
 from convsss.errors import ConvsssError
 from convsss.materials import Material, material
+from convsss.profiles import model_profile
 from convsss.samples import IrradianceSamples, ViewFrame
 from convsss.transport import ConvolutionTransport, ExactTransport, make_transport
 from convsss.transport.kernels import CACHE
@@ -37,7 +38,7 @@ def sphere(n, radius, uniform=False):
 def test_slab_exits_total_reflectance(name, cell_over_mfp):
     """A flat slab under uniform E exits M = R_total E away from its edges (measured: within 0.2 %)."""
     m = material(name)
-    profile = m.profile()
+    profile = model_profile("dipole", m)
     cell = cell_over_mfp * (m.mfp_mm.min() if cell_over_mfp < 1 else m.mfp_mm.max())
     slab = plane(float(profile.radius_energy(0.002).max()), cell / 2)
     transport = ConvolutionTransport(slab, profile, FRAME, layers=8, cell_size=cell)
@@ -49,7 +50,7 @@ def test_slab_exits_total_reflectance(name, cell_over_mfp):
 def test_point_source_follows_profile(name):
     """A unit flux at a grid node: M(r) = R_d(r) within 2 % beyond the first two cells (cell = mfp/4)."""
     m = material(name)
-    profile = m.profile()
+    profile = model_profile("dipole", m)
     cell = m.mfp_mm.min() / 4
     xs = (np.arange(101) - 50) * cell
     x, y = np.meshgrid(xs, xs)
@@ -66,7 +67,7 @@ def test_point_source_follows_profile(name):
 
 def test_kernels_hold_the_profile_energy_for_any_cell():
     """Cell averages: h^2 sum K_m = ∫_{m dz}^inf 2 pi r R_d dr (minus the kernel's tail), coarse or fine."""
-    profile = material("skin1").profile()
+    profile = model_profile("dipole", material("skin1"))
     for resolution in (40, 400):
         t = ConvolutionTransport(sphere(4000, 10.0), profile, FRAME, layers=4, resolution=resolution)
         depth = t.dz * np.arange(4)
@@ -100,7 +101,7 @@ def test_converges_to_exact_sum_as_layers_grow():
     couple through ``(K_0 + K_1)/2`` instead of ``K_0`` (paper §4.2's depth discretization). 64 layers bring the
     5 mm marble sphere to 1.1 %.
     """
-    profile = material("wholemilk").profile()
+    profile = model_profile("dipole", material("wholemilk"))
     samples = sphere(40000, 1.25)
     query = samples.position[::40]
     exact = ExactTransport(samples, profile).exitance(query)
@@ -116,7 +117,7 @@ def test_threshold_zero_is_the_unthresholded_path_and_five_percent_is_bounded():
     the total exitance by a bounded amount. Measured on this 2 mm wholemilk sphere (8 layers; a translucent object
     where distant layers matter; 7 of 8 layers receive samples): t = 0.1 % keeps 56 of 56 pairs (max over channels)
     and changes the total by 0.02 %; t = 5 % keeps 31 of 56 and loses 18.1 %."""
-    profile = material("wholemilk").profile()
+    profile = model_profile("dipole", material("wholemilk"))
     samples = sphere(20000, 2.0)
     query = samples.position[::10]
     common = dict(layers=8, resolution=128)
@@ -132,7 +133,7 @@ def test_threshold_zero_is_the_unthresholded_path_and_five_percent_is_bounded():
 def test_downsampled_layers_stay_close_to_full_resolution():
     """Layers at 1/2 and 1/4 resolution: relative L2 difference to full resolution (256 cells) below 1 % and 3 %
     (measured 0.2 % and 0.6 %, wholemilk sphere of 2 mm, 8 layers)."""
-    profile = material("wholemilk").profile()
+    profile = model_profile("dipole", material("wholemilk"))
     samples = sphere(20000, 2.0)
     query = samples.position[::10]
     ref = ConvolutionTransport(samples, profile, FRAME, layers=8, resolution=256).exitance(query)
@@ -158,7 +159,7 @@ def test_total_exitance_of_a_closed_surface():
 
     The depth discretization, first order in dz / mfp, dominates: 64 layers are needed for 3 %.
     """
-    profile = material("skin1").profile()
+    profile = model_profile("dipole", material("skin1"))
     samples = sphere(60000, 10.0, uniform=True)
     t = ConvolutionTransport(samples, profile, FRAME, layers=64, resolution=256)
     ratio = (t.exitance(samples.position) * samples.area[:, None]).sum(0) / (
@@ -167,7 +168,7 @@ def test_total_exitance_of_a_closed_surface():
 
 
 def test_only_layers_that_bracket_the_queries_are_inverted():
-    profile = material("marble").profile()
+    profile = model_profile("dipole", material("marble"))
     samples = sphere(5000, 3.0)
     query = samples.position[samples.position[:, 2] > 2.9]  # nearest the camera: the last layers only
     lazy = ConvolutionTransport(samples, profile, FRAME, layers=8, resolution=64)
@@ -181,7 +182,7 @@ def test_only_layers_that_bracket_the_queries_are_inverted():
 
 def test_kernel_spectra_are_cached_and_results_reproducible():
     CACHE.clear()
-    profile = material("skin1").profile()
+    profile = model_profile("dipole", material("skin1"))
     samples = sphere(3000, 3.0)
     a = ConvolutionTransport(samples, profile, FRAME, layers=4, resolution=64)
     b = ConvolutionTransport(samples, profile, FRAME, layers=4, resolution=64)
@@ -190,7 +191,7 @@ def test_kernel_spectra_are_cached_and_results_reproducible():
 
 
 def test_half_splat_and_stats():
-    profile = material("skin1").profile()
+    profile = model_profile("dipole", material("skin1"))
     samples = sphere(3000, 3.0)
     t = make_transport("convolution", samples, profile, frame=FRAME, layers=4, resolution=64, splat="half")
     t.exitance(samples.position)
@@ -213,12 +214,12 @@ def test_half_splat_and_stats():
 ])
 def test_bad_parameters(kwargs, message):
     with pytest.raises(ConvsssError, match=message):
-        ConvolutionTransport(sphere(500, 3.0), material("skin1").profile(), FRAME, **kwargs)
+        ConvolutionTransport(sphere(500, 3.0), model_profile("dipole", material("skin1")), FRAME, **kwargs)
 
 
 def test_needs_a_frame():
     with pytest.raises(ConvsssError, match="ViewFrame"):
-        make_transport("convolution", sphere(500, 3.0), material("skin1").profile())
+        make_transport("convolution", sphere(500, 3.0), model_profile("dipole", material("skin1")))
 
 
 def tilted_plane(half_width, spacing, cos_theta, depth_offset=0.0):
@@ -249,7 +250,7 @@ def test_plane_correction_makes_any_lit_plane_exit_total_reflectance(cos_theta):
     quarter mean free path), which grows with the tilt and with cell / mfp (~5 % at one mean free path, cos 0.7).
     """
     m = material("skin1")
-    profile = m.profile()
+    profile = model_profile("dipole", m)
     half = float(profile.radius_energy(0.002).max())
     samples = tilted_plane(half, m.mfp_mm.min() / 8, cos_theta)
     transport = ConvolutionTransport(samples, profile, FRAME, layers=12, cell_size=m.mfp_mm.min() / 4,
@@ -286,7 +287,7 @@ def test_plane_correction_against_the_exact_sum_and_energy():
     of a 10 mm skin sphere under uniform light (total / flux R_total): 0.991 / 0.995 / 1.004 at 8 layers with the
     correction, 0.962 / 1.050 / 1.257 without.
     """
-    profile = material("marble").profile()
+    profile = model_profile("dipole", material("marble"))
     samples = sphere(40000, 5.0)
     query, normals = samples.position[::40], samples.normal[::40]
     exact = ExactTransport(samples, profile).exitance(query)
@@ -297,7 +298,7 @@ def test_plane_correction_against_the_exact_sum_and_energy():
         errors[correction] = np.linalg.norm(t.exitance(query, normals) - exact) / np.linalg.norm(exact)
     assert errors["plane"] < 0.015 and errors["plane"] < errors["none"] / 4, errors
 
-    skin = material("skin1").profile()
+    skin = model_profile("dipole", material("skin1"))
     lit = sphere(60000, 10.0, uniform=True)
     t = ConvolutionTransport(lit, skin, FRAME, layers=8, resolution=256, correction="plane")
     ratio = (t.exitance(lit.position, lit.normal) * lit.area[:, None]).sum(0) / (
@@ -313,7 +314,7 @@ def test_plane_correction_of_an_object_smaller_than_the_profile_is_not_negative(
     the exact sum); bounding the removal by what the layers deposited (Eq. P2) leaves them within 0.03 %.
     """
     skin = material("skin1")
-    profile = Material(skin.sigma_s_prime / 1000, skin.sigma_a / 1000, skin.eta).profile()
+    profile = model_profile("dipole", Material(skin.sigma_s_prime / 1000, skin.sigma_a / 1000, skin.eta))
     samples = sphere(2000, 2.0)
     t = ConvolutionTransport(samples, profile, FRAME, layers=8, resolution=64, correction="plane")
     assert t.exitance(samples.position).min() >= 0  # the layers alone
@@ -331,7 +332,7 @@ def test_plane_correction_at_silhouettes_is_not_negative():
     (min -5.1 for E <= 1) and a relative L2 error against the exact sum of 0.72 (layers alone: 0.59); removing at most
     the excess share of what the layers deposited (Eq. P2) leaves none negative and 0.56.
     """
-    profile = material("spectralon").profile()
+    profile = model_profile("dipole", material("spectralon"))
     samples = sphere(20000, 10.0)
     t = ConvolutionTransport(samples, profile, FRAME, layers=8, resolution=128, correction="plane")
     layers = t.exitance(samples.position)
@@ -348,8 +349,8 @@ def test_plane_correction_needs_normals_and_a_known_mode():
     ball = sphere(500, 3.0)
     no_normals = IrradianceSamples(ball.position, ball.area, ball.irradiance)
     with pytest.raises(ConvsssError, match="normals"):
-        ConvolutionTransport(no_normals, material("skin1").profile(), FRAME, correction="plane")
-    ConvolutionTransport(no_normals, material("skin1").profile(), FRAME, correction="none")
-    ConvolutionTransport(plane(3.0, 0.2), material("skin1").profile(), FRAME, correction="plane")
+        ConvolutionTransport(no_normals, model_profile("dipole", material("skin1")), FRAME, correction="plane")
+    ConvolutionTransport(no_normals, model_profile("dipole", material("skin1")), FRAME, correction="none")
+    ConvolutionTransport(plane(3.0, 0.2), model_profile("dipole", material("skin1")), FRAME, correction="plane")
     with pytest.raises(ConvsssError, match="correction"):
-        ConvolutionTransport(sphere(500, 3.0), material("skin1").profile(), FRAME, correction="cubic")
+        ConvolutionTransport(sphere(500, 3.0), model_profile("dipole", material("skin1")), FRAME, correction="cubic")

@@ -3,7 +3,7 @@ import pytest
 
 from convsss.errors import ConvsssError
 from convsss.materials import material
-from convsss.profiles import TabulatedProfile
+from convsss.profiles import TabulatedProfile, model_profile
 from convsss.samples import IrradianceSamples
 from convsss.transport import ExactTransport, make_transport
 
@@ -17,7 +17,7 @@ def cloud():
 
 @pytest.mark.parametrize("name", ["skin1", "wholemilk", "spectralon"])
 def test_direct_sum_matches_numpy(cloud, name):
-    profile = material(name).profile()
+    profile = model_profile("dipole", material(name))
     query = cloud.position[::60] + 0.1
     distance = np.linalg.norm(query[:, None] - cloud.position[None], axis=-1)
     expected = np.einsum("kic,ic->kc", profile(distance), cloud.flux)
@@ -36,4 +36,4 @@ def test_any_profile_plugs_in(cloud):
 
 def test_unknown_transport(cloud):
     with pytest.raises(ConvsssError, match="unknown transport 'fft'"):
-        make_transport("fft", cloud, material("skin1").profile())
+        make_transport("fft", cloud, model_profile("dipole", material("skin1")))

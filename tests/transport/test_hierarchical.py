@@ -25,6 +25,7 @@ import pytest
 
 from convsss.errors import ConvsssError
 from convsss.materials import material
+from convsss.profiles import model_profile
 from convsss.samples import IrradianceSamples
 from convsss.transport import HierarchicalTransport, make_transport
 from convsss.transport.exact import ExactTransport
@@ -50,7 +51,7 @@ def sphere():
 
 
 def relative_error(samples, name, epsilons, query):
-    profile = material(name).profile()
+    profile = model_profile("dipole", material(name))
     exact = ExactTransport(samples, profile).exitance(query)
     errors, visits = [], []
     for eps in epsilons:
@@ -81,7 +82,7 @@ def test_query_points_off_the_surface(sphere):
 
 
 def test_single_sample_is_the_profile():
-    profile = material("apple").profile()
+    profile = model_profile("dipole", material("apple"))
     samples = IrradianceSamples([[1.0, 2.0, 3.0]], [0.5], [[2.0, 1.0, 4.0]])
     query = np.array([[1.0, 2.0, 3.0], [1.5, 2.0, 3.0], [1.0, 4.0, 3.0]])
     m = HierarchicalTransport(samples, profile, epsilon=0.2).exitance(query)
@@ -90,7 +91,7 @@ def test_single_sample_is_the_profile():
 
 
 def test_registered_with_stats(sphere):
-    profile = material("skin1").profile()
+    profile = model_profile("dipole", material("skin1"))
     transport = make_transport("hierarchical", sphere, profile, frame=None, epsilon=0.1, leaf_size=4)
     assert isinstance(transport, HierarchicalTransport)
     transport.exitance(sphere.position[:300])
@@ -105,4 +106,4 @@ def test_registered_with_stats(sphere):
 @pytest.mark.parametrize("eps", [-0.1, float("nan")])
 def test_bad_epsilon(sphere, eps):
     with pytest.raises(ConvsssError, match="epsilon"):
-        HierarchicalTransport(sphere, material("skin1").profile(), epsilon=eps)
+        HierarchicalTransport(sphere, model_profile("dipole", material("skin1")), epsilon=eps)

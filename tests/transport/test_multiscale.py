@@ -6,6 +6,7 @@ import pytest
 
 from convsss import material
 from convsss.errors import ConvsssError
+from convsss.profiles import model_profile
 from convsss.samples import IrradianceSamples, ViewFrame
 from convsss.transport import make_transport
 from convsss.transport.multiscale import (
@@ -42,7 +43,7 @@ def _lit_sphere(radius, n, seed=0):
 
 @pytest.mark.parametrize("name", ["wholemilk", "skin1", "ketchup"])
 def test_the_three_bands_sum_to_the_profile(name):
-    profile = material(name).profile()
+    profile = model_profile("dipole", material(name))
     sc = scales(profile, 0.01)
     far, core, band = split(profile, sc.core, sc.split)
     r = np.linspace(0.0, 1.5 * sc.split, 2000)
@@ -62,7 +63,7 @@ def test_the_three_bands_sum_to_the_profile(name):
 
 
 def test_scales_follow_the_profile_and_the_accuracy():
-    milk, skin = material("wholemilk").profile(), material("skin1").profile()
+    milk, skin = model_profile("dipole", material("wholemilk")), model_profile("dipole", material("skin1"))
     assert 0.5 < core_width(milk) / material("wholemilk").mfp_mm.min() < 1.0  # about 0.8 mean free paths
     assert core_width(skin) > 2 * core_width(milk)
     fine, coarse = scales(milk, 0.0025), scales(milk, 0.04)
@@ -97,7 +98,7 @@ def test_clusters_keep_the_flux_and_the_two_sides_of_a_sheet_apart():
 @pytest.mark.slow
 @pytest.mark.parametrize("radius", [2.0, 20.0])
 def test_converges_to_the_exact_sum_on_spheres_ten_times_apart(radius):
-    milk = material("wholemilk").profile()
+    milk = model_profile("dipole", material("wholemilk"))
     samples = _lit_sphere(radius, 60000 if radius > 5 else 20000)
     points = samples.position[::29] * 1.0
     exact = make_transport("exact", samples, milk).exitance(points)
@@ -110,7 +111,7 @@ def test_converges_to_the_exact_sum_on_spheres_ten_times_apart(radius):
 def test_queries_off_the_surface_agree_with_the_exact_sum():
     """Points 1 mm outside a sphere lie in voxels of the middle band that hold no samples, and inside the far-field
     mesh, which reaches r_c past the samples."""
-    skin = material("skin1").profile()
+    skin = model_profile("dipole", material("skin1"))
     samples = _lit_sphere(10.0, 40000)
     points = samples.position[::97] * 1.1
     exact = make_transport("exact", samples, skin).exitance(points)
@@ -140,7 +141,7 @@ def test_the_middle_band_is_summed_at_voxel_corners_for_dense_queries_and_at_spa
     and kept, so asking in another order gives the same exitance bit for bit; queries sparser than the voxels (fewer
     queries in a batch than the corners they would add) are summed where they are, and agree with the corners to
     the band's interpolation error."""
-    skin = material("skin1").profile()
+    skin = model_profile("dipole", material("skin1"))
     samples = _lit_sphere(10.0, 20000)
     jitter = np.random.default_rng(4).normal(scale=0.01, size=(len(samples), 4, 3))
     dense = (samples.position[:, None] + jitter).reshape(-1, 3)  # 4 queries per sample, in the samples' spiral order
@@ -159,14 +160,14 @@ def test_the_middle_band_is_summed_at_voxel_corners_for_dense_queries_and_at_spa
 
 def test_no_samples_give_no_exitance():
     empty = IrradianceSamples(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
-    transport = make_transport("multiscale", empty, material("skin1").profile(), FRAME)
+    transport = make_transport("multiscale", empty, model_profile("dipole", material("skin1")), FRAME)
     np.testing.assert_array_equal(transport.exitance(np.ones((2, 3))), 0.0)
 
 
 def test_memory_is_refused_before_allocating():
     samples = _lit_sphere(20.0, 2000)
     with pytest.raises(ConvsssError, match="multiscale far-field mesh"):
-        make_transport("multiscale", samples, material("wholemilk").profile(), FRAME, memory_limit=1e5)
+        make_transport("multiscale", samples, model_profile("dipole", material("wholemilk")), FRAME, memory_limit=1e5)
 
 
 @pytest.fixture(scope="module")
@@ -190,4 +191,4 @@ def test_a_cell_list_too_large_is_refused_before_allocating():
     a billions-of-cubes offset table; a one-line error, not a MemoryError."""
     samples = _lit_sphere(20.0, 2000)
     with pytest.raises(ConvsssError, match="cell list .* use the hierarchical or exact transport"):
-        make_transport("multiscale", samples, material("wholemilk").profile("pbd"), FRAME)
+        make_transport("multiscale", samples, model_profile("pbd", material("wholemilk")), FRAME)

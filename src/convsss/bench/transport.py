@@ -13,6 +13,7 @@ import scipy.fft
 from tqdm import tqdm
 
 from ..materials import material
+from ..profiles import model_profile
 from ..samples import IrradianceSamples, ViewFrame
 from ..transport import clear_caches
 from ..transport.convolution import ConvolutionTransport
@@ -97,7 +98,7 @@ def bench_transport(grids=(256, 512, 1024), layer_counts=(4, 8, 16), thresholds=
                     progress=True):
     """Rows ``{grid, layers, threshold, stage_median_s, fft_floor_s, ratio, fft_shape, pairs_per_layer}``."""
     frame = ViewFrame.look_at([0, 0, 100], [0, 0, 0])
-    profile = material("wholemilk").profile()
+    profile = model_profile("dipole", material("wholemilk"))
     configs = [(g, n, t) for g in grids for n in layer_counts for t in thresholds]
     rows = []
     bar = tqdm(total=len(configs) * runs, desc="bench transport", unit="run", disable=not progress)

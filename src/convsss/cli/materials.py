@@ -24,15 +24,17 @@ def materials(as_json):
     1/sigma_tr (mm; inf without absorption). Names are looked up ignoring case, spaces and punctuation.
     """
     from ..materials import catalog
+    from ..profiles.models import color_of
 
-    rows = [m.summary() for m in catalog()]
+    totals = [color_of(m, "dipole") for m in catalog()]
+    rows = [{**m.summary(), "total_reflectance": t.tolist()} for m, t in zip(catalog(), totals)]
     if as_json:
         click.echo(json.dumps(rows, indent=1))
         return
     header = f"{'name':<28} {'sigma_s_prime 1/mm':<22} {'sigma_a 1/mm':<24} {'eta':>4}  {'R_total':<17} " \
              f"{'mfp mm':<19} {'diffusion length mm':<20}"
     click.echo(header)
-    for m in catalog():
+    for m, total in zip(catalog(), totals):
         click.echo(f"{m.name:<28} {_triple(m.sigma_s_prime, '.4g'):<22} {_triple(m.sigma_a, '.4g'):<24} "
-                   f"{m.eta:>4.2f}  {_triple(m.total_reflectance, '.3f'):<17} {_triple(m.mfp_mm, '.3g'):<19} "
+                   f"{m.eta:>4.2f}  {_triple(total, '.3f'):<17} {_triple(m.mfp_mm, '.3g'):<19} "
                    f"{_triple(m.diffusion_length_mm, '.3g'):<20}")

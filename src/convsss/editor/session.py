@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material, OpticallyThinWarning, catalog
 from ..materials import material as preset_material
-from ..profiles import ScaledProfile, TabulatedProfile
+from ..profiles import ScaledProfile, TabulatedProfile, material_from_color
 from ..profiles.models import (
     PROFILE_MODELS,
     check_model,
@@ -224,9 +224,9 @@ class EditSession:
         """Apply ``changes`` (keys of :data:`FIELDS`), rebuild what depends on them, render; returns :meth:`state`.
 
         ``preset`` (a name of ``convsss materials``; its eta on a dielectric boundary) is applied first, then
-        ``color``/``mfp_mm`` (:meth:`Material.from_color` under the current model; the one not given is kept), then
-        ``sigma_s_prime``/``sigma_a`` (1/mm), then ``eta``; ``model`` and ``accuracy`` as they are. A bad value is a
-        :class:`ConvsssError` and changes nothing.
+        ``color``/``mfp_mm`` (:func:`~convsss.profiles.material_from_color` under the current model; the one not
+        given is kept), then ``sigma_s_prime``/``sigma_a`` (1/mm), then ``eta``; ``model`` and ``accuracy`` as they
+        are. A bad value is a :class:`ConvsssError` and changes nothing.
         """
         unknown = sorted(set(changes) - set(FIELDS))
         if unknown:
@@ -293,7 +293,7 @@ class EditSession:
             color = (_triple(changes["color"], "color") if changes.get("color") is not None
                      else color_of(m, color_model))
             mfp = _triple(changes["mfp_mm"], "mfp_mm") if changes.get("mfp_mm") is not None else m.mfp_mm
-            m = Material.from_color(color, mfp, eta, color_model)
+            m = material_from_color(color, mfp, eta, color_model)
         if changes.get("sigma_s_prime") is not None or changes.get("sigma_a") is not None:
             s = _triple(changes["sigma_s_prime"], "sigma_s'") if changes.get("sigma_s_prime") is not None \
                 else m.sigma_s_prime

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import json_ready, write_text
+from ..profiles import model_profile
 from .render import PROFILE_COLUMNS
 
 #: The paper's numbers quoted against ours (Munoz et al. 2011, §5 and Fig. 2).
@@ -214,7 +215,7 @@ def _dt_and_dz(record):
     dz = record.get("transport_stats", {}).get("dz_mm")
     if t <= 0:
         return math.inf, dz
-    profile = material(record["scene"]["material"]).profile()
+    profile = model_profile("dipole", material(record["scene"]["material"]))
     return float(np.max(profile.radius_below(t))), dz
 
 

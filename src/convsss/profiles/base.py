@@ -17,8 +17,8 @@ one file, imported by :mod:`convsss.profiles.models`.
 import numpy as np
 
 from ..errors import ConvsssError
+from ..materials import CHANNELS  # noqa: F401  (the profiles' channels are the materials')
 
-CHANNELS = "RGB"
 #: :meth:`Profile.effective_area` cuts the profile's peak at the radius holding this fraction of its energy.
 PEAK_ENERGY = 0.02
 

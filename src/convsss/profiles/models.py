@@ -12,6 +12,7 @@ from scipy.optimize import brentq
 
 from ..errors import ConvsssError
 from ..fresnel import check_eta, diffuse_transmittance
+from ..materials import Material
 from . import beam_diffusion, better_dipole, burley, dipole  # noqa: F401  (each registers its model)
 from .base import CHANNELS, PROFILE_MODELS, ScaledProfile
 from .incidence import escaped
@@ -216,8 +217,6 @@ def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom", warn=
     -------
     Material
     """
-    from ..materials import Material
-
     model = check_color_model_name(model or DEFAULT_COLOR_MODEL)
     mfp = np.broadcast_to(np.asarray(mfp_mm, dtype=np.float64), (3,))
     if not np.all(np.isfinite(mfp)) or np.any(mfp <= 0):
