@@ -7,16 +7,18 @@ imports them all, so :data:`TRANSPORTS` holds every one:
 - ``exact``: the direct sum over all samples (reference, small cases);
 - ``convolution``: the paper's layered FFT convolutions (§4–5);
 - ``hierarchical``: Jensen & Buhler 2002's octree, the paper's comparison method (§6);
-- ``multiscale``: the profile split in a near field (direct sum over clustered samples) and a far field (3-D FFT).
+- ``multiscale``: the profile split in a near field (direct sum over clustered samples) and a far field (3-D FFT);
+- ``volume``: Eq. 1 corrected by the diffusion equation solved on the object's volume (light through the body).
 """
 
 from ..errors import ConvsssError
-from . import convolution, exact, hierarchical, multiscale  # noqa: F401  (each registers its transport)
+from . import convolution, exact, hierarchical, multiscale, volume  # noqa: F401  (each registers its transport)
 from .base import TRANSPORTS, Transport, register_transport
 from .convolution import ConvolutionTransport
 from .exact import ExactTransport
 from .hierarchical import HierarchicalTransport
 from .multiscale import MultiscaleTransport
+from .volume import VolumeTransport
 
 
 def clear_caches():
@@ -24,10 +26,12 @@ def clear_caches():
     from .correction import RESPONSES
     from .kernels import CACHE
     from .multiscale import SPECTRA
+    from .volume import RESPONSES as VOLUME_RESPONSES
 
     CACHE.clear()
     RESPONSES.clear()
     SPECTRA.clear()
+    VOLUME_RESPONSES.clear()
 
 
 def make_transport(kind, samples, profile, frame=None, **params):
@@ -42,4 +46,4 @@ def make_transport(kind, samples, profile, frame=None, **params):
 
 
 __all__ = ["ConvolutionTransport", "ExactTransport", "HierarchicalTransport", "MultiscaleTransport", "TRANSPORTS",
-           "Transport", "clear_caches", "make_transport", "register_transport"]
+           "Transport", "VolumeTransport", "clear_caches", "make_transport", "register_transport"]

@@ -34,6 +34,9 @@ class Transport:
     """
 
     name = "transport"
+    #: Whether the transport sums Eq. 1 (the profile at the straight distance); a transport that follows the
+    #: object's shape instead (``volume``) agrees with Eq. 1 on a half-space only.
+    sums_eq1 = True
     #: The :class:`~convsss.parameters.Parameter` declarations of this transport's keyword parameters.
     parameters = ()
 
