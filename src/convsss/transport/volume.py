@@ -333,10 +333,11 @@ def assemble(sd, z_b, diffusion, sigma_a, h):
     return matrix, index
 
 
-def moment_weights(points, origin, h, index, depth, moment):
+def moment_weights(points, origin, h, index, depth):
     """The 8 nodes around each point and their trilinear weights, kept on inside nodes (``index >= 0``) and scaled
-    so that ``sum_k w_k d_k = moment`` (K,), ``d_k`` the node's distance inside the extrapolated boundary
-    (``depth``) and ``moment`` the point's own.
+    so that ``sum_k w_k d_k`` is the point's own distance inside the extrapolated boundary (``depth`` at the
+    nodes, ``d_k``, interpolated over all eight: the nearest boundary's, which in a part thinner than two
+    extrapolation lengths is the other face's).
 
     Near the boundary the field of Eq. D1 is proportional to that distance (it is zero on the boundary), so what
     a point source puts in the far field is its strength times its distance (its *moment*), and the value at a
@@ -354,6 +355,7 @@ def moment_weights(points, origin, h, index, depth, moment):
     nodes = np.empty((len(points), 8), dtype=np.int64)
     weights = np.empty((len(points), 8))
     held = np.zeros(len(points))
+    moment = np.zeros(len(points))
     corner = 0
     for dx in (0, 1):
         for dy in (0, 1):
@@ -364,8 +366,10 @@ def moment_weights(points, origin, h, index, depth, moment):
                 node = np.where(valid, index[cc[:, 0], cc[:, 1], cc[:, 2]], -1)
                 w = ((f[:, 0] if dx else 1 - f[:, 0]) * (f[:, 1] if dy else 1 - f[:, 1])
                      * (f[:, 2] if dz else 1 - f[:, 2]))
+                d = np.where(valid, depth[cc[:, 0], cc[:, 1], cc[:, 2]], 0.0)
+                moment += w * d
                 w = np.where(node >= 0, w, 0.0)
-                held += w * depth[cc[:, 0], cc[:, 1], cc[:, 2]]
+                held += w * d
                 nodes[:, corner] = np.maximum(node, 0)
                 weights[:, corner] = w
                 corner += 1
@@ -508,10 +512,8 @@ class VolumeTransport(Transport):
         (``field`` given: returns the values and which points are held) at ``distance`` inside the extrapolated
         boundary under surface ``points`` (Eq. D5), with :func:`moment_weights`."""
         index, depth, _ = self._channels[c]
-        z_b = self.coefficients.z_b[c]
-        at = points - (distance - z_b) * normal
-        own = np.maximum(z_b - self._surface.signed_distance(at), 0.0)  # nearer another face in a thin part
-        nodes, weights, held = moment_weights(at, self._origin, self.spacing, index, depth, own)
+        at = points - (distance - self.coefficients.z_b[c]) * normal
+        nodes, weights, held = moment_weights(at, self._origin, self.spacing, index, depth)
         if flux is not None:
             size = self._channels[c][2].levels[0].A.shape[0]
             return np.bincount(nodes.ravel(), (weights * flux[:, None]).ravel(), size), held
