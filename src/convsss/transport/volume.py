@@ -71,6 +71,9 @@ READS = 60_000
 RESOLVED_LENGTH = 2.0
 #: How many diffusion lengths the medium under an open sheet of samples is grown (:meth:`VolumeTransport._domain`).
 OPEN_DEPTH = 3.0
+#: A point whose offset from its nearest sample makes an angle with the normal of cosine below this lies beyond a
+#: rim (:meth:`Surface.signed_distance`).
+RIM_COSINE = 0.7
 #: The smallest fraction of a link at which the boundary is put (a node on the boundary itself).
 THETA_MIN = 0.01
 #: Bytes per grid node: signed distance, three channels' indices, matrices, multigrid hierarchies and fields.
@@ -289,9 +292,14 @@ class Surface:
         return self.normal[self._nearest(points)]
 
     def signed_distance(self, points):
-        """At ``points`` (K, 3): the distance to the nearest sample's tangent plane (> 0 outside)."""
+        """At ``points`` (K, 3): the distance to the nearest sample's tangent plane (> 0 outside), or, where the
+        point lies off that sample along the surface rather than along its normal (beyond a rim or an edge, where
+        the plane would reach out past the object), the distance to the sample itself, outside."""
         nearest = self._nearest(points)
-        return np.einsum("ij,ij->i", points - self.position[nearest], self.normal[nearest])
+        offset = points - self.position[nearest]
+        along = np.einsum("ij,ij->i", offset, self.normal[nearest])
+        distance = np.linalg.norm(offset, axis=1)
+        return np.where(np.abs(along) >= RIM_COSINE * distance, along, distance)
 
     def signed_distance_on(self, origin, h, shape):
         """:meth:`signed_distance` at the nodes ``origin + h (i, j, k)`` of ``shape``."""
