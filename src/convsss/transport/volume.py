@@ -309,9 +309,11 @@ class Surface:
 
     def signed_distance_on(self, origin, h, shape, band):
         """:meth:`signed_distance` at the nodes ``origin + h (i, j, k)`` of ``shape`` within ``band`` (mm) of the
-        samples; a node farther away gets ``-band`` (inside) or ``band`` (outside), the side of the nodes within the
-        band that its connected region of far nodes touches (a k-d tree query that stops at the band is several
-        times faster than one that finds every node's nearest sample)."""
+        samples; a node farther away gets ``-band`` (inside) or ``band`` (outside): the side of the nodes within the
+        band that its connected region of far nodes touches, where they agree (a closed surface: a k-d tree query
+        that stops at the band is several times faster than one that finds every node's nearest sample), else
+        (an open sheet of samples, whose inside and outside meet around its rim) the side of its nearest sample's
+        tangent plane."""
         axes = [origin[d] + h * np.arange(shape[d]) for d in range(3)]
         nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         sd = self.signed_distance(nodes, band).reshape(shape)
@@ -319,8 +321,15 @@ class Surface:
         regions, count = scipy.ndimage.label(far)
         touching = scipy.ndimage.grey_dilation(regions, size=(3, 3, 3))  # each near node: a far region beside it
         near = ~far & (touching > 0)
-        side = np.bincount(touching[near], np.sign(sd[near]), count + 1)
-        sd[far] = np.where(side[regions[far]] < 0, -band, band)
+        inside = np.bincount(touching[near], sd[near] < 0, count + 1)
+        outside = np.bincount(touching[near], sd[near] >= 0, count + 1)
+        side = np.where(inside > 0, -band, band)[regions]
+        mixed = far & (inside > 0)[regions] & (outside > 0)[regions]
+        if mixed.any():
+            nearest = self._nearest(nodes[mixed.ravel()])
+            plane = np.einsum("ij,ij->i", nodes[mixed.ravel()] - self.position[nearest], self.normal[nearest])
+            side[mixed] = np.where(plane < 0, -band, band)
+        sd[far] = side[far]
         return sd
 
 
