@@ -62,7 +62,9 @@ def render_parameters():
     return (
         Parameter("transport", str, "multiscale", "multiscale: near field summed directly, far field by 3-D FFTs "
                   "(the exact sum's accuracy at any size); convolution: the paper's layered FFTs; exact: the direct "
-                  "sum (slow, a reference); hierarchical: Jensen & Buhler 2002.", choices=available_transports()),
+                  "sum (slow, a reference); hierarchical: Jensen & Buhler 2002; volume: multiscale corrected by the "
+                  "diffusion equation solved on the object's interior (light through the body and thin parts, "
+                  "none across air gaps; a few times slower).", choices=available_transports()),
         Parameter("irradiance_samples", int, 16, "Direction samples per surface point for area and environment "
                   "emitters (point, spot and directional lights are evaluated exactly).", low=1),
         Parameter("indirect_samples", float, 1.0, "Paths per surface sample for indirect light (light that reaches a "
