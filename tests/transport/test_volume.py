@@ -112,3 +112,65 @@ def test_profiles_without_coefficients_and_samples_without_normals_are_refused_i
     with pytest.raises(ConvsssError, match="needs a profile model with coefficients") as info:
         make_transport("volume", plane, tabulated, FRAME)
     assert "\n" not in str(info.value)
+
+
+def _sphere_series(dipole, radius, gamma, terms=90):
+    """Per channel (3, len(gamma)): the fluence and Fick's flux at the surface of a sphere of ``radius`` (mm) at angle
+    ``gamma`` from a unit point source ``z_r`` under its pole, the extrapolated boundary ``z_b`` beyond it: the
+    eigenfunction series of the diffusion equation (modified spherical Bessel functions, u = 0 at radius + z_b)."""
+    from scipy.special import eval_legendre, spherical_in, spherical_kn
+
+    sigma, z_r = np.asarray(dipole.sigma_tr), np.asarray(dipole.z_r)
+    z_b = 0.5 * (np.asarray(dipole.z_v) - z_r)
+    diffusion = 1.0 / (3.0 * (dipole.sigma_s_prime + dipole.sigma_a))
+    fluence, flux = np.zeros((3, len(gamma))), np.zeros((3, len(gamma)))
+    for c in range(3):
+        s, outer, source = sigma[c], radius + z_b[c], radius - z_r[c]
+        for n in range(terms):
+            ratio = spherical_kn(n, s * outer) / spherical_in(n, s * outer)
+            radial = spherical_kn(n, s * radius) - ratio * spherical_in(n, s * radius)
+            slope = s * (spherical_kn(n, s * radius, True) - ratio * spherical_in(n, s * radius, True))
+            weight = (2 * n + 1) * spherical_in(n, s * source) * eval_legendre(n, np.cos(gamma))
+            fluence[c] += weight * radial
+            flux[c] -= weight * slope * diffusion[c]
+        scale = s / (4 * np.pi * diffusion[c]) * (2 / np.pi)
+        fluence[c] *= scale
+        flux[c] *= scale
+    return fluence, flux
+
+
+@pytest.mark.slow
+def test_on_a_sphere_the_solve_is_the_diffusion_solution_and_its_exitance_falls_short_by_the_curvature():
+    """Ladder item 3 (issue 32): a unit point source under the pole of a 5 mm skin1 sphere (eta 1), against the
+    eigenfunction series. The grid's fluence at the surface, 20-180 degrees from the source, is the series' within
+    5 % (measured 0.99-1.04). The exitance is 0.82-0.85 of the series' Fick flux in red and 0.86-0.90 in green to
+    120 degrees (Eq. D4 converts fluence to flux as a flat boundary does, and misses the curvature's
+    (1 + z_b / R), 1.17 here), 0.60-0.69 in green at 150-180 degrees (there the grid's half-space response, which
+    Eq. D2 subtracts, exceeds the dipole's tail), where Eq. 1 gives 0.30-0.75 in red and 0.11-0.70 in green: the
+    shortfall is stated, not hidden (the bounds below hold what was measured)."""
+    medium = dataclasses.replace(material("skin1"), eta=1.0)
+    dipole = model_profile("dipole", medium, total="model")
+    radius, n = 5.0, 40000
+    k = np.arange(n) + 0.5
+    polar, azimuth = np.arccos(1 - 2 * k / n), np.pi * (1 + 5**0.5) * k
+    normal = np.stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)], axis=1)
+    area = 4 * np.pi * radius**2 / n
+    irradiance = np.zeros((n, 3))
+    irradiance[0] = 1.0 / area
+    transport = make_transport("volume", IrradianceSamples(normal * radius, area, irradiance, normal), dipole, FRAME)
+    gamma = np.radians([20.0, 40.0, 60.0, 90.0, 120.0, 150.0, 180.0])
+    across = np.cross(normal[0], [1.0, 0.0, 0.0])
+    across /= np.linalg.norm(across)
+    points = radius * (np.cos(gamma)[:, None] * normal[0] + np.sin(gamma)[:, None] * across)
+    fluence, flux = _sphere_series(dipole, radius, gamma)
+    exitance = transport.exitance(points)
+    correction = exitance - transport._half.exitance(points) + transport._flat.exitance(points)
+    c = transport.coefficients
+    grid_fluence = correction / (c.beta * c.source_gain * c.read_gain)  # per unit source, as the series
+    np.testing.assert_allclose(grid_fluence[:, :2], fluence[:2].T, rtol=0.05)
+    ratio = exitance[:, :2] / (flux[:2] * dipole.alpha_prime[:2, None]).T
+    assert np.all((ratio[:, 0] > 0.8) & (ratio[:, 0] < 0.9))
+    assert np.all((ratio[:5, 1] > 0.84) & (ratio[:5, 1] < 0.93))
+    assert np.all((ratio[5:, 1] > 0.55) & (ratio[5:, 1] < 0.75))
+    eq1 = transport._half.exitance(points)[:, :2] / (flux[:2] * dipole.alpha_prime[:2, None]).T
+    assert np.all(np.abs(ratio - 1) < np.abs(eq1 - 1))
