@@ -174,3 +174,17 @@ def test_on_a_sphere_the_solve_is_the_diffusion_solution_and_its_exitance_falls_
     assert np.all((ratio[5:, 1] > 0.55) & (ratio[5:, 1] < 0.75))
     eq1 = transport._half.exitance(points)[:, :2] / (flux[:2] * dipole.alpha_prime[:2, None]).T
     assert np.all(np.abs(ratio - 1) < np.abs(eq1 - 1))
+
+
+def test_no_samples_or_no_resolved_channel_is_eq1():
+    """Without samples, or where no channel's diffusion length spans two cells (a dense material on a coarse grid),
+    the volume transport is Eq. 1: the multiscale sum alone, no grid built."""
+    skin = model_profile("dipole", material("skin1"))
+    empty = IrradianceSamples(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    assert np.array_equal(make_transport("volume", empty, skin, FRAME).exitance(np.zeros((2, 3))), np.zeros((2, 3)))
+    slab = _slab(2.0, half_width=4.0)
+    coarse = make_transport("volume", slab, skin, FRAME, spacing=2.0)
+    assert not coarse.corrected.any() and coarse.stats["unknowns"] == [0, 0, 0]
+    points = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, -2.0]])
+    np.testing.assert_array_equal(coarse.exitance(points),
+                                  make_transport("multiscale", slab, skin, FRAME).exitance(points))

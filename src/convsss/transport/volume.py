@@ -459,6 +459,12 @@ class VolumeTransport(Transport):
 
     def __init__(self, samples, profile, frame=None, **params):
         super().__init__(samples, profile, frame, **params)
+        if not len(samples):  # nothing to solve for: Eq. 1 (of nothing)
+            self.spacing, self.corrected, self._channels = 0.0, np.zeros(3, dtype=bool), [(None, None, None)] * 3
+            self.coefficients, self._sd = coefficients(profile, 1.0), np.zeros((0, 0, 0))
+            self._view = self._normal = np.zeros((0, 3))
+            self._build()
+            return
         if samples.normal is None:
             raise ConvsssError("the volume transport needs the samples' normals")
         view = self._to_view(samples.position)
@@ -467,12 +473,17 @@ class VolumeTransport(Transport):
         self.spacing = h = self.spacing_for((lo, hi), profile, self.params)
         self.coefficients = k = coefficients(profile, h)
         reach = self._reach(h, float(np.linalg.norm(hi - lo)))
+        with np.errstate(divide="ignore"):
+            self.corrected = 1.0 / k.sigma_tr >= RESOLVED_LENGTH * h
+        self._channels = [(None, None, None)] * 3
+        self._view, self._normal, self._sd = view, normal, np.zeros((0, 0, 0))
+        if not self.corrected.any():  # the grid resolves no channel's diffusion length: Eq. 1
+            self._build()
+            return
         with self.timings("domain"):
             self._surface = Surface(view, normal, h)
             self._origin, self._sd = self._domain(lo, hi, h, reach)
         self._channels = []
-        with np.errstate(divide="ignore"):
-            self.corrected = 1.0 / k.sigma_tr >= RESOLVED_LENGTH * h
         for c in range(3):
             if not self.corrected[c]:
                 self._channels.append((None, None, None))
@@ -482,7 +493,6 @@ class VolumeTransport(Transport):
             with self.timings("multigrid"):
                 solver = multigrid(matrix) if matrix.shape[0] else None
             self._channels.append((index, k.z_b[c] - self._sd, solver))
-        self._view, self._normal = view, normal
         with self.timings("response"):
             self._response = self._half_space(h, reach)
         self._build()
@@ -551,7 +561,8 @@ class VolumeTransport(Transport):
             self._half = MultiscaleTransport(self.samples, self.profile, self.frame, **ms)
             held_samples = IrradianceSamples(self.samples.position, self.samples.area,
                                              held / self.samples.area[:, None], self.samples.normal)
-            self._flat = MultiscaleTransport(held_samples, self._response, self.frame, **ms)
+            self._flat = MultiscaleTransport(held_samples, self._response, self.frame, **ms) \
+                if self.corrected.any() else None
 
     def _place(self, c, points, normal, distance, flux=None, field=None):
         """Channel ``c``'s sources (``flux`` given: returns the right-hand side and which samples are held) or reads
@@ -581,6 +592,8 @@ class VolumeTransport(Transport):
     def _exitance(self, points):
         out = self._half.exitance(points)
         view = self._to_view(points)
+        if self._flat is None:
+            return out
         correction = -self._flat.exitance(points)
         k = self.coefficients
         with self.timings("read_back"):
@@ -596,7 +609,8 @@ class VolumeTransport(Transport):
         """The base stats plus the grid's spacing, shape and unknowns per channel, and the tail match ``beta``."""
         return {**super().stats, "spacing_mm": self.spacing, "grid": list(self._sd.shape),
                 "unknowns": [0 if index is None else int((index >= 0).sum()) for index, _, _ in self._channels],
-                "beta": self.coefficients.beta.tolist(), "sums": [self._half.stats, self._flat.stats]}
+                "beta": self.coefficients.beta.tolist(), "corrected": self.corrected.tolist(),
+                "sums": [t.stats for t in (self._half, self._flat) if t is not None]}
 
 
 register_transport(VolumeTransport)
