@@ -78,7 +78,8 @@ OPEN_DEPTH = 3.0
 RIM_COSINE = 0.7
 #: The smallest fraction of a link at which the boundary is put (a node on the boundary itself).
 THETA_MIN = 0.01
-#: Bytes per grid node: signed distance, three channels' indices, matrices, multigrid hierarchies and fields.
+#: Bytes per grid node: signed distance, three channels' indices, matrices, multigrid hierarchies and fields (an
+#: estimate from their sizes: 8 + 3 x (8 + 8 + 7 x 12 x 1.5 + 8) for every node inside; not measured).
 BYTES_PER_NODE = 560
 #: The half-space responses, keyed by (coefficients, spacing).
 RESPONSES = KernelCache()
@@ -606,7 +607,8 @@ class VolumeTransport(Transport):
 
     @property
     def stats(self):
-        """The base stats plus the grid's spacing, shape and unknowns per channel, and the tail match ``beta``."""
+        """The base stats plus the grid's spacing, shape and unknowns per channel, Eq. D4's ``beta``, the corrected
+        channels and the two sums' stats."""
         return {**super().stats, "spacing_mm": self.spacing, "grid": list(self._sd.shape),
                 "unknowns": [0 if index is None else int((index >= 0).sum()) for index, _, _ in self._channels],
                 "beta": self.coefficients.beta.tolist(), "corrected": self.corrected.tolist(),
