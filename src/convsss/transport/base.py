@@ -9,6 +9,7 @@ in the units of ``E``. The outgoing radiance is ``L = (1/pi) F_t(eta, w_o) M`` (
 never here. A transport knows nothing of Mitsuba.
 """
 
+import copy
 import dataclasses
 
 from ..parameters import check_parameters
@@ -103,6 +104,21 @@ class Transport:
     def _relit(self, samples):
         """A transport of ``samples`` (this one's but for their irradiance); by default built again."""
         return type(self)(samples, self.profile, self.frame, **self.params)
+
+    def _rebuilt(self, samples):
+        """For a :meth:`_relit` that keeps what depends on the samples' places: a shallow copy with ``samples`` and
+        fresh timings whose ``_build`` (what depends on their flux) runs again."""
+        new = copy.copy(self)
+        new.samples, new.timings = samples, StageTimer()
+        new._build()
+        return new
+
+    def _to_view(self, points, vectors=False):
+        """World points (``vectors``: directions) in the camera's view frame; as they are without a frame."""
+        f = self.frame
+        if f is None:
+            return points
+        return f.rotate(points) if vectors else f.to_view(points)
 
     def _prepare(self, points):
         """Work a query needs before the lookup itself (timed by the transport under its own stage names)."""

@@ -36,7 +36,6 @@ radius where ``R_d`` falls to half its peak, smallest over the channels: about 0
 see :func:`scales`. The lengths are common to the channels, sized by the narrowest.
 """
 
-import copy
 import math
 from dataclasses import dataclass
 
@@ -48,7 +47,6 @@ from ..errors import ConvsssError
 from ..hashtable import capacity, empty, grown, probe
 from ..memory import check_memory
 from ..parameters import Parameter
-from ..timing import StageTimer
 from .base import Transport, register_transport
 from .kernels import KernelCache, profile_key
 from .radial import RadialTable, profile_lookup
@@ -722,16 +720,7 @@ class MultiscaleTransport(Transport):
 
     def _relit(self, samples):
         """The same places and clusters with the new samples' flux: only :meth:`_build` runs again."""
-        new = copy.copy(self)
-        new.samples, new.timings = samples, StageTimer()
-        new._build()
-        return new
-
-    def _to_view(self, points, vectors=False):
-        f = self.frame
-        if f is None:
-            return points
-        return f.rotate(points) if vectors else f.to_view(points)
+        return self._rebuilt(samples)
 
     def _far_field(self, position, flux, lo, hi):
         """Deposit the clusters' flux on the mesh, convolve with ``R_far`` by 3-D FFTs (Eq. M2), keep the field.

@@ -36,7 +36,6 @@ response to one source against the average over where it falls in a cell); a sla
 closed form.
 """
 
-import copy
 import math
 from dataclasses import dataclass
 
@@ -54,7 +53,6 @@ from ..profiles.base import ScaledProfile
 from ..profiles.dipole import DipoleProfile
 from ..profiles.tabulated import TabulatedProfile
 from ..samples import IrradianceSamples
-from ..timing import StageTimer
 from .base import Transport, register_transport
 from .kernels import KernelCache
 from .multiscale import MultiscaleTransport
@@ -460,26 +458,27 @@ class VolumeTransport(Transport):
 
     def __init__(self, samples, profile, frame=None, **params):
         super().__init__(samples, profile, frame, **params)
-        if not len(samples):  # nothing to solve for: Eq. 1 (of nothing)
-            self.spacing, self.corrected, self._channels = 0.0, np.zeros(3, dtype=bool), [(None, None, None)] * 3
-            self.coefficients, self._sd = coefficients(profile, 1.0), np.zeros((0, 0, 0))
-            self._view = self._normal = np.zeros((0, 3))
-            self._build()
-            return
-        if samples.normal is None:
+        if len(samples) and samples.normal is None:
             raise ConvsssError("the volume transport needs the samples' normals")
-        view = self._to_view(samples.position)
-        normal = self._to_view(samples.normal, vectors=True)
+        self.spacing, self.corrected, self._sd = 0.0, np.zeros(3, dtype=bool), np.zeros((0, 0, 0))
+        self.coefficients, self._channels = coefficients(profile, 1.0), [(None, None, None)] * 3
+        if len(samples):  # without samples there is nothing to solve for: Eq. 1 (of nothing)
+            self._set_up()
+        self._build()
+
+    def _set_up(self):
+        """The grid, its matrices and multigrid hierarchies and the half-space responses, for the channels whose
+        diffusion length the grid resolves (none: Eq. 1, and no grid is built)."""
+        view = self._to_view(self.samples.position)
+        normal = self._to_view(self.samples.normal, vectors=True)
         lo, hi = view.min(axis=0), view.max(axis=0)
-        self.spacing = h = self.spacing_for((lo, hi), profile, self.params)
-        self.coefficients = k = coefficients(profile, h)
+        self.spacing = h = self.spacing_for((lo, hi), self.profile, self.params)
+        self.coefficients = k = coefficients(self.profile, h)
         reach = self._reach(h, float(np.linalg.norm(hi - lo)))
         with np.errstate(divide="ignore"):
             self.corrected = 1.0 / k.sigma_tr >= RESOLVED_LENGTH * h
-        self._channels = [(None, None, None)] * 3
-        self._view, self._normal, self._sd = view, normal, np.zeros((0, 0, 0))
-        if not self.corrected.any():  # the grid resolves no channel's diffusion length: Eq. 1
-            self._build()
+        self._view, self._normal = view, normal
+        if not self.corrected.any():
             return
         with self.timings("domain"):
             self._surface = Surface(view, normal, h)
@@ -496,7 +495,6 @@ class VolumeTransport(Transport):
             self._channels.append((index, k.z_b[c] - self._sd, solver))
         with self.timings("response"):
             self._response = self._half_space(h, reach)
-        self._build()
 
     def _domain(self, lo, hi, h, reach):
         """The grid's origin and the signed distance at its nodes. Where the samples bound nothing (an open sheet,
@@ -579,16 +577,7 @@ class VolumeTransport(Transport):
 
     def _relit(self, samples):
         """The same grid, matrices, multigrid hierarchies and responses; the solves and sums again."""
-        new = copy.copy(self)
-        new.samples, new.timings = samples, StageTimer()
-        new._build()
-        return new
-
-    def _to_view(self, points, vectors=False):
-        f = self.frame
-        if f is None:
-            return points
-        return f.rotate(points) if vectors else f.to_view(points)
+        return self._rebuilt(samples)
 
     def _exitance(self, points):
         out = self._half.exitance(points)
