@@ -462,6 +462,7 @@ class VolumeTransport(Transport):
             raise ConvsssError("the volume transport needs the samples' normals")
         self.spacing, self.corrected, self._sd = 0.0, np.zeros(3, dtype=bool), np.zeros((0, 0, 0))
         self.coefficients, self._channels = coefficients(profile, 1.0), [(None, None, None)] * 3
+        self._half = self._flat = None  # the two sums of Eq. D2, built by the first _build, relit by the others
         if len(samples):  # without samples there is nothing to solve for: Eq. 1 (of nothing)
             self._set_up()
         self._build()
@@ -555,7 +556,11 @@ class VolumeTransport(Transport):
             with self.timings("solve"):
                 field = solver.solve(rhs / self.spacing**3, x0=np.zeros_like(rhs), tol=1e-8, accel="cg", maxiter=200)
                 self._fields.append(field)
-        with self.timings("sums"):
+        with self.timings("sums"):  # relit: the sums keep their clusters (the samples' places are the same)
+            if self._half is not None:
+                self._half = self._half.relit(self.samples.irradiance)
+                self._flat = None if self._flat is None else self._flat.relit(held / self.samples.area[:, None])
+                return
             ms = {"accuracy": self.params["accuracy"], "memory_limit": self.params["memory_limit"]}
             self._half = MultiscaleTransport(self.samples, self.profile, self.frame, **ms)
             held_samples = IrradianceSamples(self.samples.position, self.samples.area,
