@@ -56,14 +56,15 @@ def test_the_grid_decays_at_sigma_tr_along_its_axes():
 
 def test_the_half_space_response_holds_the_one_dimensional_solution():
     """T(r) integrated over the plane is the response to a uniformly lit plane: beta times it is the dipole's total
-    (Eq. D4) on a grid fine enough that no source or read is moved (Eq. D5)."""
+    (Eq. D4) on a grid fine enough that no source is moved (Eq. D5) and the first read is at the real surface."""
     skin = model_profile("dipole", material("skin1"))
     h = 0.25
     k = coefficients(skin, h)
-    assert np.allclose(k.source_gain, 1.0) and np.allclose(k.read_gain, 1.0)
+    assert np.allclose(k.source_gain, 1.0) and np.allclose(k.read_depths[0], k.z_b)
     reach = skin.radius_energy(1e-3)
     for c in range(2):
-        r, t = half_space_response(k.diffusion[c], k.absorption[c], k.source_depth[c], k.read_depth[c], h, reach[c])
+        r, t = half_space_response(k.diffusion[c], k.absorption[c], k.source_depth[c], k.read_depths[:, c],
+                                   k.read_weights[:, c], h, reach[c])
         total = k.beta[c] * np.trapezoid(2 * np.pi * r * t, r)
         assert total == pytest.approx(float(skin.total_reflectance[c]), rel=0.01)
 
@@ -87,20 +88,35 @@ def test_a_uniformly_lit_half_space_exits_the_profile_total():
 @pytest.mark.slow
 @pytest.mark.parametrize("d", [2.0, 5.0])
 def test_a_slab_lit_on_one_face_transmits_what_diffusion_theory_gives(d):
-    """A skin1 slab (eta 1, as the closed form has it) 2 and 5 mm thick, lit on its top face: the far face's
-    exitance in the channels the grid resolves (R and G) within 7 % of the 1-D closed form (measured 0.95/0.94 at
-    2 mm, 0.968/0.968 at 5 mm; Eq. 1 gives 0.55/0.28 and 0.39/0.18), the lit face within 2 % (Eq. 1: 1.51 in red
-    at 2 mm)."""
+    """Ladder item 2 (issue 32): a skin1 slab (eta 1, as the closed form has it) 2 and 5 mm thick, lit on its top
+    face, at the automatic spacing: the far face's exitance in the channels the grid resolves (R and G) within 2 %
+    of the 1-D closed form (measured 1.010/0.998 at 2 mm, 1.002/0.997 at 5 mm; Eq. 1 gives 0.55/0.28 and
+    0.39/0.18), the lit face within 2 % (measured 1.006/1.002 and 1.003/0.998; Eq. 1: 1.51 in red at 2 mm)."""
     medium = dataclasses.replace(material("skin1"), eta=1.0)
     dipole = model_profile("dipole", medium, total="model")
     transport = make_transport("volume", _slab(d), dipole, FRAME)
     assert transport.corrected.tolist() == [True, True, False]
     lit, far = transport.exitance(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -d]]))
     reflected, transmitted = _slab_theory(dipole, d)
-    np.testing.assert_allclose(far[:2], transmitted[:2], rtol=0.07)
+    np.testing.assert_allclose(far[:2], transmitted[:2], rtol=0.02)
     np.testing.assert_allclose(lit[:2], reflected[:2], rtol=0.02)
     eq1 = make_transport("multiscale", _slab(d), dipole, FRAME).exitance(np.array([[0.0, 0.0, -d]]))[0]
-    assert np.all(np.abs(far[:2] / transmitted[:2] - 1) < np.abs(eq1[:2] / transmitted[:2] - 1) / 5)
+    assert np.all(np.abs(far[:2] / transmitted[:2] - 1) < np.abs(eq1[:2] / transmitted[:2] - 1) / 20)
+
+
+@pytest.mark.slow
+def test_the_slab_converges_to_diffusion_theory_as_the_spacing_falls():
+    """The 2 mm skin1 slab's far face in red at spacings 0.5, 0.35 and 0.25 mm: the error against the closed form
+    falls at every step and ends within 0.5 % (measured 0.911, 1.003, 1.0002: at 0.5 mm the extrapolated slab,
+    3.7 mm, is 7 cells thick)."""
+    medium = dataclasses.replace(material("skin1"), eta=1.0)
+    dipole = model_profile("dipole", medium, total="model")
+    transmitted = _slab_theory(dipole, 2.0)[1][0]
+    errors = []
+    for h in (0.5, 0.35, 0.25):
+        far = make_transport("volume", _slab(2.0), dipole, FRAME, spacing=h).exitance(np.array([[0.0, 0.0, -2.0]]))
+        errors.append(abs(far[0, 0] / transmitted - 1))
+    assert errors[0] > errors[1] > errors[2] and errors[2] < 0.005
 
 
 def test_profiles_without_coefficients_and_samples_without_normals_are_refused_in_one_line():
@@ -115,7 +131,7 @@ def test_profiles_without_coefficients_and_samples_without_normals_are_refused_i
 
 
 def _sphere_series(dipole, radius, gamma, terms=90):
-    """Per channel (3, len(gamma)): the fluence and Fick's flux at the surface of a sphere of ``radius`` (mm) at angle
+    """Per channel (3, len(gamma)): Fick's flux at the surface of a sphere of ``radius`` (mm) at angle
     ``gamma`` from a unit point source ``z_r`` under its pole, the extrapolated boundary ``z_b`` beyond it: the
     eigenfunction series of the diffusion equation (modified spherical Bessel functions, u = 0 at radius + z_b)."""
     from scipy.special import eval_legendre, spherical_in, spherical_kn
@@ -123,31 +139,25 @@ def _sphere_series(dipole, radius, gamma, terms=90):
     sigma, z_r = np.asarray(dipole.sigma_tr), np.asarray(dipole.z_r)
     z_b = 0.5 * (np.asarray(dipole.z_v) - z_r)
     diffusion = 1.0 / (3.0 * (dipole.sigma_s_prime + dipole.sigma_a))
-    fluence, flux = np.zeros((3, len(gamma))), np.zeros((3, len(gamma)))
+    flux = np.zeros((3, len(gamma)))
     for c in range(3):
         s, outer, source = sigma[c], radius + z_b[c], radius - z_r[c]
         for n in range(terms):
             ratio = spherical_kn(n, s * outer) / spherical_in(n, s * outer)
-            radial = spherical_kn(n, s * radius) - ratio * spherical_in(n, s * radius)
             slope = s * (spherical_kn(n, s * radius, True) - ratio * spherical_in(n, s * radius, True))
             weight = (2 * n + 1) * spherical_in(n, s * source) * eval_legendre(n, np.cos(gamma))
-            fluence[c] += weight * radial
             flux[c] -= weight * slope * diffusion[c]
         scale = s / (4 * np.pi * diffusion[c]) * (2 / np.pi)
-        fluence[c] *= scale
         flux[c] *= scale
-    return fluence, flux
+    return flux
 
 
 @pytest.mark.slow
-def test_on_a_sphere_the_solve_is_the_diffusion_solution_and_its_exitance_falls_short_by_the_curvature():
+def test_on_a_sphere_the_exitance_is_the_diffusion_solution():
     """Ladder item 3 (issue 32): a unit point source under the pole of a 5 mm skin1 sphere (eta 1), against the
-    eigenfunction series. The grid's fluence at the surface, 20-180 degrees from the source, is the series' within
-    5 % (measured 0.99-1.04). The exitance is 0.82-0.85 of the series' Fick flux in red and 0.86-0.90 in green to
-    120 degrees (Eq. D4 converts fluence to flux as a flat boundary does, and misses the curvature's
-    (1 + z_b / R), 1.17 here), 0.60-0.69 in green at 150-180 degrees (there the grid's half-space response, which
-    Eq. D2 subtracts, exceeds the dipole's tail), where Eq. 1 gives 0.30-0.75 in red and 0.11-0.70 in green: the
-    shortfall is stated, not hidden (the bounds below hold what was measured)."""
+    eigenfunction series' Fick flux, 20-180 degrees from the source, at the automatic spacing (0.34 mm): within 2.5 %
+    from 60 degrees on, within 5 % nearer the source (measured 0.999-1.041 in red, 0.988-1.047 in green; 1.04-1.05 at
+    20-40 degrees, 1.02 at 180), where Eq. 1 gives 0.29-0.76 in red and 0-0.70 in green."""
     medium = dataclasses.replace(material("skin1"), eta=1.0)
     dipole = model_profile("dipole", medium, total="model")
     radius, n = 5.0, 40000
@@ -162,18 +172,12 @@ def test_on_a_sphere_the_solve_is_the_diffusion_solution_and_its_exitance_falls_
     across = np.cross(normal[0], [1.0, 0.0, 0.0])
     across /= np.linalg.norm(across)
     points = radius * (np.cos(gamma)[:, None] * normal[0] + np.sin(gamma)[:, None] * across)
-    fluence, flux = _sphere_series(dipole, radius, gamma)
-    exitance = transport.exitance(points)
-    correction = exitance - transport._half.exitance(points) + transport._flat.exitance(points)
-    c = transport.coefficients
-    grid_fluence = correction / (c.beta * c.source_gain * c.read_gain)  # per unit source, as the series
-    np.testing.assert_allclose(grid_fluence[:, :2], fluence[:2].T, rtol=0.05)
-    ratio = exitance[:, :2] / (flux[:2] * dipole.alpha_prime[:2, None]).T
-    assert np.all((ratio[:, 0] > 0.8) & (ratio[:, 0] < 0.9))
-    assert np.all((ratio[:5, 1] > 0.84) & (ratio[:5, 1] < 0.93))
-    assert np.all((ratio[5:, 1] > 0.55) & (ratio[5:, 1] < 0.75))
-    eq1 = transport._half.exitance(points)[:, :2] / (flux[:2] * dipole.alpha_prime[:2, None]).T
-    assert np.all(np.abs(ratio - 1) < np.abs(eq1 - 1))
+    flux = _sphere_series(dipole, radius, gamma)
+    exact = (flux[:2] * dipole.alpha_prime[:2, None]).T
+    ratio = transport.exitance(points)[:, :2] / exact
+    assert np.all(np.abs(ratio[2:] - 1) < 0.025) and np.all(np.abs(ratio[:2] - 1) < 0.05)
+    eq1 = transport._half.exitance(points)[:, :2] / exact
+    assert np.all(np.abs(ratio - 1) < np.abs(eq1 - 1) / 5)
 
 
 def test_no_samples_or_no_resolved_channel_is_eq1():
