@@ -682,3 +682,17 @@ def test_progress_is_plain_lines_when_stderr_is_no_terminal(scene_file, tmp_path
     assert "render: shading (7/8) at" in subprocess.run(
         [sys.executable, "-m", "convsss", "render", str(scene_file), "-o", str(tmp_path / "c"), "--spp", "1",
          "--width", "16", "--height", "16"], capture_output=True, text=True, timeout=300, env=env).stderr
+
+
+def test_progress_counts_passes_once_the_integrator_names_them(capsys):
+    """A render in passes: a line per pass, each stage's line once (the first pass), the bar's total the passes."""
+    from convsss.cli.render import StageProgress
+
+    bar = StageProgress(enabled=True, terminal=False)
+    for stage in ("scene_load", "pass 1/3", "samples", "shading", "pass 2/3", "samples", "shading", "pass 3/3"):
+        bar(stage)
+    assert (bar.bar.total, bar.bar.n) == (3, 2)
+    bar.close()
+    lines = [line.split(" at ")[0] for line in capsys.readouterr().err.splitlines()]
+    assert lines == ["render: scene_load (1/8)", "render: pass 1/3", "render: samples", "render: shading",
+                     "render: pass 2/3", "render: pass 3/3", "render: done"]

@@ -405,3 +405,48 @@ def test_a_camera_at_infinity_is_one_line(mi, sphere_scene):
     scene = mi.load_dict(scene_dict)
     with pytest.raises(convsss.ConvsssError, match="the camera's transform is not finite"):
         scene.integrator().render(scene, scene.sensors()[0])
+
+
+@pytest.mark.slow
+def test_passes_average_renders_of_fresh_samples_each_with_its_share(mi, sphere_scene):
+    """passes=4 at spp 8 is the mean of four one-pass renders, each with a quarter of the surface samples
+    (sample_density and profile_samples / 4), 2 camera samples and the pass's own seed (the first: the render's)."""
+    from convsss.scene.integrator import pass_seed
+    from convsss.scene.params import PROFILE_SAMPLES
+
+    scene, image = _render(mi, sphere_scene(integrator={"passes": 4}, res=24, spp=8), seed=3)
+    stats = scene.integrator().stats
+    assert [p["spp"] for p in stats["passes"]] == [2, 2, 2, 2] and stats["film"]["spp"] == 8
+    seeds = [p["seed"] for p in stats["passes"]]
+    assert seeds == [pass_seed(3, k) for k in range(4)] and seeds[0] == 3 and len(set(seeds)) == 4
+    share = {"sample_density": 1.0, "profile_samples": PROFILE_SAMPLES / 4}
+    singles = [_render(mi, sphere_scene(integrator=share, res=24, spp=2), seed=s)[1] for s in seeds]
+    np.testing.assert_allclose(image, np.mean(singles, axis=0), rtol=1e-5, atol=1e-7)
+    assert stats["samples"] == sum(p["samples"] for p in stats["passes"])
+
+
+@pytest.mark.slow
+def test_the_image_noise_falls_with_passes(mi, sphere_scene, object_mask):
+    """Four passes of a quarter budget each (samples and spp) against one: the difference between two seeds' images
+    over the object falls by about 2 (1/sqrt(passes)); asserted below 0.7."""
+    quarter = {"sample_density": 1.0, "profile_samples": 100.0}
+
+    def spread(integrator, spp):
+        images = [_render(mi, sphere_scene(integrator=integrator, res=24, spp=spp), seed=s) for s in (1, 2)]
+        mask = object_mask(images[0][0])
+        return np.abs(images[0][1] - images[1][1])[mask].mean()
+
+    assert spread({**quarter, "passes": 4, "sample_density": 4.0, "profile_samples": 400.0}, 8) \
+        < 0.7 * spread(quarter, 2)
+
+
+@pytest.mark.slow
+def test_a_time_limit_stops_after_the_first_pass_and_refusals(mi, sphere_scene):
+    scene, image = _render(mi, sphere_scene(integrator={"passes": 3, "time_limit": 1e-6}, res=16, spp=6))
+    stats = scene.integrator().stats
+    assert len(stats["passes"]) == 1 and stats["film"]["spp"] == 2 and np.all(np.isfinite(image))
+    scene, _ = _render(mi, sphere_scene(integrator={"passes": 8}, res=16, spp=2))
+    assert len(scene.integrator().stats["passes"]) == 2  # at most spp passes
+    scene = mi.load_dict(sphere_scene(integrator={"passes": 2}, res=16, spp=2))
+    with pytest.raises(convsss.ConvsssError, match="passes > 1 needs develop=True"):
+        scene.integrator().render(scene, develop=False)

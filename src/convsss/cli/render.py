@@ -36,7 +36,8 @@ STAGES = ("scene_load", "samples", "irradiance", "indirect", "transport", "scree
 
 class StageProgress:
     """The render's stages on stderr: a tqdm bar on a terminal, else one plain line per stage as it starts (a log
-    without carriage returns); ``__call__(stage)`` moves it on."""
+    without carriage returns); ``__call__(stage)`` moves it on. A render in passes (the integrator's ``pass k/n``)
+    counts passes instead, with the time left estimated from those done."""
 
     def __init__(self, enabled=True, terminal=None):
         from tqdm import tqdm
@@ -47,9 +48,23 @@ class StageProgress:
         self.bar = tqdm(total=len(STAGES), desc="render", unit="stage", disable=not enabled or self.lines,
                         leave=True, bar_format="{desc}: {n_fmt}/{total_fmt} stages |{bar:20}| {elapsed} {postfix}")
         self.done = set()
+        self.passes = None  # (this pass, of how many), once the integrator names passes
 
     def __call__(self, stage):
-        self.bar.set_postfix_str(stage)
+        if stage.startswith("pass "):
+            self.passes = tuple(int(k) for k in stage[len("pass "):].split("/"))
+            self.bar.bar_format = "{desc}: {n_fmt}/{total_fmt} passes |{bar:20}| {elapsed}<{remaining} {postfix}"
+            self.bar.total, self.bar.n = self.passes[1], self.passes[0] - 1
+            self.bar.refresh()
+            if self.lines:
+                self._line(stage)
+            return
+        self.bar.set_postfix_str(stage if self.passes is None else f"pass {self.passes[0]}: {stage}")
+        if self.passes is not None:
+            if self.lines and stage not in self.done:
+                self._line(stage)
+            self.done.add(stage)
+            return
         if stage not in self.done:
             self.done.add(stage)
             self.bar.n = min(len(self.done), len(STAGES))
@@ -63,7 +78,7 @@ class StageProgress:
     def close(self, failed=False):
         """Finish the bar: all stages done, or left where it stopped, marked ``failed``."""
         if not failed:
-            self.bar.n = len(STAGES)
+            self.bar.n = len(STAGES) if self.passes is None else self.passes[0]
         self.bar.set_postfix_str("failed" if failed else "done")
         self.bar.close()
         if self.lines:

@@ -20,7 +20,9 @@ Per-stage seconds and everything a user needs to judge the run are in :attr:`Con
 """
 
 import functools
+import hashlib
 import threading
+import time
 import warnings
 from dataclasses import dataclass, field
 
@@ -74,6 +76,14 @@ def _one_at_a_time(method):
 
 def _seed(seed):
     return int(np.asarray(seed, dtype=np.uint64).reshape(-1)[0]) if not isinstance(seed, int) else seed
+
+
+def pass_seed(seed, k):
+    """The seed of pass ``k`` of a render of ``seed``: ``seed`` itself for the first (one pass renders as before),
+    then a 32-bit hash of both, so that passes draw independent samples and camera rays."""
+    if k == 0:
+        return seed
+    return int.from_bytes(hashlib.blake2b(f"{seed}:{k}".encode(), digest_size=4).digest(), "little")
 
 
 @dataclass(eq=False)
@@ -333,12 +343,50 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         spp_used = spp if spp else sensor.sampler().sample_count()
         per_pass = min(spp_used, self.samples_per_pass) if self.samples_per_pass > 0 else spp_used
         check_film(size[0], size[1], per_pass, len(self.aov_names()))
-        self.prepare(scene, sensor, seed)
+        if self.params.passes > 1 and not develop:
+            raise ConvsssError("passes > 1 needs develop=True: the passes' images are averaged")
         try:
+            if self.params.passes > 1:
+                return self._render_passes(scene, sensor, _seed(seed), spp_used)
+            self.prepare(scene, sensor, seed)
             return self.render_prepared(spp=spp, seed=seed, develop=develop, evaluate=evaluate)
         finally:  # the samples and transports are not kept past a render (render_prepared keeps them)
             self._shader = None
             self.prepared = None
+
+    def _render_passes(self, scene, sensor, seed, spp):
+        """:meth:`render` in ``passes`` passes: each prepares fresh samples (its share of ``sample_density`` and
+        ``profile_samples``, seed :func:`pass_seed`) and shades its share of ``spp``; returns the passes' mean,
+        weighted by their camera samples. Stops early at ``time_limit``. :attr:`stats` sums the stages' seconds
+        and lists the passes; its ``objects`` are the last pass's."""
+        p = self.params
+        count = min(p.passes, spp)
+        shares = [spp // count + (k < spp % count) for k in range(count)]
+        share_params = RenderParams(**{**p.to_dict(), "sample_density": p.sample_density / count,
+                                       "profile_samples": p.profile_samples / count})
+        start, seconds, done, image = time.perf_counter(), {}, [], None
+        try:
+            self.params = share_params
+            for k, share in enumerate(shares):
+                self._stage(f"pass {k + 1}/{count}")
+                pass_start = time.perf_counter()
+                self.prepare(scene, sensor, pass_seed(seed, k))
+                shaded = self.render_prepared(spp=share, seed=pass_seed(seed, k))
+                image = shaded * share if image is None else image + shaded * share
+                for name, t in self.stats["seconds"].items():
+                    seconds[name] = seconds.get(name, 0.0) + t
+                done.append({"seed": pass_seed(seed, k), "spp": share, "samples": self.stats["samples"],
+                             "seconds": time.perf_counter() - pass_start})
+                elapsed = time.perf_counter() - start
+                if p.time_limit and k + 1 < count and elapsed * (k + 2) / (k + 1) > p.time_limit:
+                    break
+        finally:
+            self.params = p
+        spp_done = sum(d["spp"] for d in done)
+        self.stats.update(parameters=p.to_dict(), seconds=seconds, passes=done,
+                          samples=sum(d["samples"] for d in done))
+        self.stats["film"]["spp"] = spp_done
+        return image * (1.0 / spp_done)
 
     @_one_at_a_time
     def render_prepared(self, spp=0, seed=None, develop=True, evaluate=True):

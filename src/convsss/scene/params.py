@@ -64,7 +64,7 @@ def render_parameters():
                   "(the exact sum's accuracy at any size); convolution: the paper's layered FFTs; exact: the direct "
                   "sum (slow, a reference); hierarchical: Jensen & Buhler 2002; volume: multiscale corrected by the "
                   "diffusion equation solved on the object's interior (light through the body and thin parts, "
-                  "none across air gaps; a few times slower).", choices=available_transports()),
+                  "none across air gaps; about 12 times slower at 800²).", choices=available_transports()),
         Parameter("irradiance_samples", int, 16, "Direction samples per surface point for area and environment "
                   "emitters (point, spot and directional lights are evaluated exactly).", low=1),
         Parameter("indirect_samples", float, 1.0, "Paths per surface sample for indirect light (light that reaches a "
@@ -101,6 +101,13 @@ def render_parameters():
                   "samples leave in the exitance (more camera samples do not remove it) stays about 1 % (mean over "
                   "the object's pixels) at the default; it falls about as N^-0.7. 0: the pixel rule alone. Capped, "
                   "with a warning, by the memory and time limits.", low=0.0),
+        Parameter("passes", int, 1, "Render in this many passes, each with its own surface samples (fresh, from its "
+                  "own seed stream, 1/passes of sample_density and profile_samples) and its share of the camera "
+                  "samples (spp); the image is their mean, so the exitance's sample noise averages out with passes "
+                  "as camera noise does, and each pass is a whole image (at most spp passes).", low=1),
+        Parameter("time_limit", float, 0.0, "With passes > 1: seconds after which no further pass is started (one "
+                  "that the mean pass so far says would end past the limit is not); at least one pass is rendered, "
+                  "and the image is the mean of those done. 0: no limit.", low=0.0),
         Parameter("specular", str, "bsdf", "Boundary reflection on translucent objects: the scene's BSDF, the paper's "
                   "Phong lobe weighted by the Fresnel reflectance, or none.", choices=SPECULARS),
         Parameter("phong_exponent", float, 64.0, "Exponent of the Phong lobe with specular = phong.", low=0.0,
