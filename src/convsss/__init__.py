@@ -7,8 +7,21 @@ profile through FFTs. See ``docs/architecture.md`` for the data flow: scene -> s
 __version__ = "0.1.0"
 
 from .errors import ConvsssError
-from .materials import Material, catalog, material
-from .profiles import DipoleProfile, Profile, TabulatedProfile, material_from_color, model_profile
+
+#: Where each lazily imported name lives (imported on first use: ``convsss --version`` needs none of numpy or scipy).
+_LAZY = {"Material": "materials", "catalog": "materials", "material": "materials", "DipoleProfile": "profiles",
+         "Profile": "profiles", "TabulatedProfile": "profiles", "material_from_color": "profiles",
+         "model_profile": "profiles"}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = ["ConvsssError", "DipoleProfile", "Material", "Profile", "TabulatedProfile", "catalog", "material",
            "material_from_color", "model_profile", "register", "render", "__version__"]

@@ -1,6 +1,6 @@
-"""The ``convsss`` command line: one module per command, all registered on :data:`cli`."""
+"""The ``convsss`` command line: one module per command, each registering its command on :data:`cli` when the group
+looks it up (:data:`~.main.COMMANDS`)."""
 
-from . import bench, compare, edit, figures, materials, profile, reference, render, scene  # noqa: F401  (registers the commands)
 from .main import cli
 
 
