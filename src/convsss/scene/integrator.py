@@ -94,7 +94,8 @@ class PreparedState:
     ``objects``, ``visible`` and ``cells`` hold one entry per object seen by the camera: the object, its visible
     points, the pixel footprint at its depth (mm); ``lighting`` their samples and irradiance (:class:`~.lighting.
     Lighting`: the samples with their direct irradiance, direct + indirect without the light of translucent objects,
-    the indirect paths' hits on translucent objects), ``transports`` theirs.
+    the indirect paths' hits on translucent objects), ``transports`` theirs; ``survey`` what
+    :meth:`ConvsssIntegrator._survey` found (all objects, the frame, what each pixel centre sees, the plan).
     """
 
     scene: object
@@ -106,6 +107,7 @@ class PreparedState:
     cells: list
     lighting: object
     transports: list = field(default_factory=list)
+    survey: tuple = None
 
     @property
     def samples(self):
@@ -199,9 +201,20 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         if self.progress is not None:
             self.progress(name)
 
+    def _survey(self, scene, sensor):
+        """What the camera sees, whatever the seed: the translucent objects, the view frame, each object's points
+        seen through the pixel centres, and the sampling plan (one-line errors before anything is drawn)."""
+        p = self.params
+        objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders)
+        check_camera(sensor)
+        frame = sensor_frame(sensor, p.unit_mm)
+        seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
+        return objects, frame, seen, plan_samples(scene, sensor, frame, objects, seen, p)
+
     @_one_at_a_time
-    def prepare(self, scene, sensor, seed=0):
-        """Stages 1–3 for ``sensor``: translucent objects, their irradiance samples and transports."""
+    def prepare(self, scene, sensor, seed=0, survey=None):
+        """Stages 1–3 for ``sensor``: translucent objects, their irradiance samples and transports. ``survey``: a
+        :meth:`_survey` of the same scene, sensor and parameters to reuse (the passes of one render share it)."""
         p = self.params
         timer = StageTimer(sync=dr.sync_thread)
 
@@ -210,11 +223,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             return timer(name)
 
         with stage("samples"):
-            objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders)
-            check_camera(sensor)
-            frame = sensor_frame(sensor, p.unit_mm)
-            seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
-            plan = plan_samples(scene, sensor, frame, objects, seen, p)
+            objects, frame, seen, plan = survey if survey is not None else self._survey(scene, sensor)
         shown = [objects[q.index] for q in plan.objects]
         shown_at = [seen[q.index] for q in plan.objects]
         cells = [q.pixel_footprint_mm for q in plan.objects]
@@ -238,7 +247,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                       "hidden": list(plan.hidden), "samples": int(sum(o["samples"] for o in per_object)),
                       "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
-        self.prepared = PreparedState(scene, sensor, _seed(seed), frame, shown, shown_at, cells, lighting, transports)
+        self.prepared = PreparedState(scene, sensor, _seed(seed), frame, shown, shown_at, cells, lighting, transports,
+                                      survey=(objects, frame, seen, plan))
         return self._shader
 
     @_one_at_a_time
@@ -364,13 +374,14 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         shares = [spp // count + (k < spp % count) for k in range(count)]
         share_params = RenderParams(**{**p.to_dict(), "sample_density": p.sample_density / count,
                                        "profile_samples": p.profile_samples / count})
-        start, seconds, done, image = time.perf_counter(), {}, [], None
+        start, seconds, done, image, survey = time.perf_counter(), {}, [], None, None
         try:
             self.params = share_params
             for k, share in enumerate(shares):
                 self._stage(f"pass {k + 1}/{count}")
                 pass_start = time.perf_counter()
-                self.prepare(scene, sensor, pass_seed(seed, k))
+                self.prepare(scene, sensor, pass_seed(seed, k), survey)
+                survey = self.prepared.survey
                 shaded = self.render_prepared(spp=share, seed=pass_seed(seed, k))
                 image = shaded * share if image is None else image + shaded * share
                 for name, t in self.stats["seconds"].items():
