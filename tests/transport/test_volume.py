@@ -92,8 +92,7 @@ def test_a_slab_lit_on_one_face_transmits_what_diffusion_theory_gives(d):
     face, at the automatic spacing: the far face's exitance in the channels the grid resolves (R and G) within 2 %
     of the 1-D closed form (measured 1.010/0.998 at 2 mm, 1.002/0.997 at 5 mm; Eq. 1 gives 0.55/0.28 and
     0.39/0.18), the lit face within 2 % (measured 1.006/1.002 and 1.003/0.998; Eq. 1: 1.51 in red at 2 mm)."""
-    medium = dataclasses.replace(material("skin1"), eta=1.0)
-    dipole = model_profile("dipole", medium, total="model")
+    dipole = _skin_at_eta_1()
     transport = make_transport("volume", _slab(d), dipole, FRAME)
     assert transport.corrected.tolist() == [True, True, False]
     lit, far = transport.exitance(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -d]]))
@@ -109,8 +108,7 @@ def test_the_slab_converges_to_diffusion_theory_as_the_spacing_falls():
     """The 2 mm skin1 slab's far face in red at spacings 0.5, 0.35 and 0.25 mm: the error against the closed form
     falls at every step and ends within 0.5 % (measured 0.911, 1.003, 1.0002: at 0.5 mm the extrapolated slab,
     3.7 mm, is 7 cells thick)."""
-    medium = dataclasses.replace(material("skin1"), eta=1.0)
-    dipole = model_profile("dipole", medium, total="model")
+    dipole = _skin_at_eta_1()
     transmitted = _slab_theory(dipole, 2.0)[1][0]
     errors = []
     for h in (0.5, 0.35, 0.25):
@@ -152,22 +150,33 @@ def _sphere_series(dipole, radius, gamma, terms=90):
     return flux
 
 
+def _skin_at_eta_1():
+    """skin1's classic dipole with eta 1 and its own total, as the closed forms have it."""
+    return model_profile("dipole", dataclasses.replace(material("skin1"), eta=1.0), total="model")
+
+
+def _sphere(radius, irradiance):
+    """Samples spread evenly over a sphere of ``radius`` (mm) centred at the origin (a Fibonacci lattice), one per
+    row of ``irradiance``."""
+    n = len(irradiance)
+    k = np.arange(n) + 0.5
+    polar, azimuth = np.arccos(1 - 2 * k / n), np.pi * (1 + 5**0.5) * k
+    normal = np.stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)], axis=1)
+    return IrradianceSamples(normal * radius, 4 * np.pi * radius**2 / n, irradiance, normal)
+
+
 @pytest.mark.slow
 def test_on_a_sphere_the_exitance_is_the_diffusion_solution():
     """Ladder item 3 (issue 32): a unit point source under the pole of a 5 mm skin1 sphere (eta 1), against the
     eigenfunction series' Fick flux, 20-180 degrees from the source, at the automatic spacing (0.34 mm): within 2.5 %
     from 60 degrees on, within 5 % nearer the source (measured 0.999-1.041 in red, 0.988-1.047 in green; 1.04-1.05 at
     20-40 degrees, 1.02 at 180), where Eq. 1 gives 0.29-0.76 in red and 0-0.70 in green."""
-    medium = dataclasses.replace(material("skin1"), eta=1.0)
-    dipole = model_profile("dipole", medium, total="model")
-    radius, n = 5.0, 40000
-    k = np.arange(n) + 0.5
-    polar, azimuth = np.arccos(1 - 2 * k / n), np.pi * (1 + 5**0.5) * k
-    normal = np.stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)], axis=1)
-    area = 4 * np.pi * radius**2 / n
-    irradiance = np.zeros((n, 3))
-    irradiance[0] = 1.0 / area
-    transport = make_transport("volume", IrradianceSamples(normal * radius, area, irradiance, normal), dipole, FRAME)
+    dipole, radius = _skin_at_eta_1(), 5.0
+    irradiance = np.zeros((40000, 3))
+    irradiance[0] = 1.0 / (4 * np.pi * radius**2 / len(irradiance))
+    samples = _sphere(radius, irradiance)
+    normal = samples.normal
+    transport = make_transport("volume", samples, dipole, FRAME)
     gamma = np.radians([20.0, 40.0, 60.0, 90.0, 120.0, 150.0, 180.0])
     across = np.cross(normal[0], [1.0, 0.0, 0.0])
     across /= np.linalg.norm(across)
@@ -185,13 +194,8 @@ def test_a_uniformly_lit_sphere_exits_the_diffusion_solution():
     """A 5 mm skin1 sphere (eta 1) under uniform irradiance: the exitance is the eigenfunction series' l = 0 term
     within 2 % in every channel at the automatic spacing (measured 1.010/1.010/1.006), where Eq. 1, which sums the
     half-space's profile over chords (its plane total on a sphere), returns 0.69/0.73/0.80 of it."""
-    medium = dataclasses.replace(material("skin1"), eta=1.0)
-    dipole = model_profile("dipole", medium, total="model")
-    radius, n = 5.0, 40000
-    k = np.arange(n) + 0.5
-    polar, azimuth = np.arccos(1 - 2 * k / n), np.pi * (1 + 5**0.5) * k
-    normal = np.stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)], axis=1)
-    samples = IrradianceSamples(normal * radius, 4 * np.pi * radius**2 / n, np.ones((n, 3)), normal)
+    dipole, radius = _skin_at_eta_1(), 5.0
+    samples = _sphere(radius, np.ones((40000, 3)))
     transport = make_transport("volume", samples, dipole, FRAME)
     assert transport.corrected.all()
     l_0 = _sphere_series(dipole, radius, np.zeros(1), terms=1)[:, 0]  # the series' uniform term
