@@ -240,7 +240,7 @@ def half_space_response(diffusion, sigma_a, source_depth, read_depths, read_weig
     edges = np.arange(0.0, reach + 0.25 * h, 0.25 * h)
     total, count = np.zeros(len(edges) - 1), np.zeros(len(edges) - 1)
     for delta in OFFSETS:
-        # node k at (k + delta) h inside the extrapolated boundary (Eq. D5: the source and the read at their depths)
+        # node k at (k + delta) h inside the extrapolated boundary (the source at Eq. D5's depth, the reads at Eq. D4's)
         diagonal = np.broadcast_to(2.0 * link + sigma_a + diffusion * lam.ravel(), (n_z, lam.size)).copy()
         diagonal[0] += link * (1.0 / delta - 1.0)  # the link to the boundary, a fraction delta of a cell away
         src_nodes, src_w = _depth_weights(source_depth / h - delta, delta, h, source_depth)
@@ -565,7 +565,7 @@ class VolumeTransport(Transport):
         return min(reach, OPEN_DEPTH * length)
 
     def _half_space(self, h, reach):
-        """``beta T`` of Eq. D2 as a tabulated profile (``T`` with the gains of Eq. D5). A channel not corrected
+        """``beta T`` of Eq. D2 as a tabulated profile (``T`` with the source gain of Eq. D5). A channel not corrected
         holds no flux in the second sum, but its response is solved all the same: it sets the sum's scales (with
         the corrected channels' alone, coarser, the slab's far face falls by 1-2.5 %)."""
         k = self.coefficients
@@ -610,7 +610,8 @@ class VolumeTransport(Transport):
     def _place(self, c, points, normal, distance, flux=None, field=None):
         """Channel ``c``'s sources (``flux`` given: returns the right-hand side and which samples are held) or reads
         (``field`` given: returns the values and which points are held) at ``distance`` inside the extrapolated
-        boundary under surface ``points`` (Eq. D5), with :func:`moment_weights`."""
+        boundary under surface ``points`` (sources where Eq. D5 puts them, reads at Eq. D4's depths), with
+        :func:`moment_weights`."""
         index, depth, solver = self._channels[c]
         at = points - (distance - self.coefficients.z_b[c]) * normal
         if flux is not None:
