@@ -379,14 +379,14 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self.params = share_params
             for k, share in enumerate(shares):
                 self._stage(f"pass {k + 1}/{count}")
-                pass_start = time.perf_counter()
-                self.prepare(scene, sensor, pass_seed(seed, k), survey)
+                pass_start, own_seed = time.perf_counter(), pass_seed(seed, k)
+                self.prepare(scene, sensor, own_seed, survey)
                 survey = self.prepared.survey
-                shaded = self.render_prepared(spp=share, seed=pass_seed(seed, k))
+                shaded = self.render_prepared(spp=share, seed=own_seed)
                 image = shaded * share if image is None else image + shaded * share
                 for name, t in self.stats["seconds"].items():
                     seconds[name] = seconds.get(name, 0.0) + t
-                done.append({"seed": pass_seed(seed, k), "spp": share, "samples": self.stats["samples"],
+                done.append({"seed": own_seed, "spp": share, "samples": self.stats["samples"],
                              "seconds": time.perf_counter() - pass_start})
                 elapsed = time.perf_counter() - start
                 if p.time_limit and k + 1 < count and elapsed * (k + 2) / (k + 1) > p.time_limit:
