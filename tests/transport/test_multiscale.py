@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 
 from convsss import material
+from convsss.materials import Material
 from convsss.errors import ConvsssError
 from convsss.profiles import model_profile
 from convsss.samples import IrradianceSamples, ViewFrame
-from convsss.transport import make_transport
+from convsss.transport import MultiscaleTransport, make_transport
 from convsss.transport.multiscale import (
     BAND_TABLE,
     _deposit,
@@ -41,25 +42,48 @@ def _lit_sphere(radius, n, seed=0):
     return IrradianceSamples(normal * radius, 4 * np.pi * radius**2 / n, irradiance, normal)
 
 
+def _table(radius, table, r):
+    """A core or band table (uniform in r^2 on [0, radius^2]) at the radii ``r``, 0 beyond."""
+    return np.stack([np.interp(r**2, np.linspace(0, radius**2, BAND_TABLE), table[:, c], right=0.0)
+                     for c in range(3)], axis=1)
+
+
+@pytest.mark.parametrize("levels", [1, 3])
 @pytest.mark.parametrize("name", ["wholemilk", "skin1", "ketchup"])
-def test_the_three_bands_sum_to_the_profile(name):
+def test_the_bands_sum_to_the_profile(name, levels):
     profile = model_profile("dipole", material(name))
-    sc = scales(profile, 0.01)
-    far, core, band = split(profile, sc.core, sc.split)
-    r = np.linspace(0.0, 1.5 * sc.split, 2000)
+    sc = scales(profile, 0.01, levels=levels)
+    assert len(sc.radii) == levels + 1 and sc.radii[-1] == pytest.approx(sc.split)
+    far, core, bands = split(profile, sc.radii)
+    assert len(bands) == levels
+    r = np.linspace(0.0, 1.5 * sc.split, 4000)
     far_values = np.where(r[:, None] < sc.split, far[0] + far[1] * r[:, None] ** 2, profile(r))
-    core_values = np.stack([np.interp(r**2, np.linspace(0, sc.core**2, BAND_TABLE), core[:, c], right=0.0)
-                            for c in range(3)], axis=1)
-    band_values = np.stack([np.interp(r**2, np.linspace(0, sc.split**2, BAND_TABLE), band[:, c], right=0.0)
-                            for c in range(3)], axis=1)
-    total = core_values + band_values + far_values
+    parts = [_table(radius, table, r) for radius, table in zip(sc.radii, [core, *bands])]
+    total = far_values + sum(parts)
     np.testing.assert_allclose(total, profile(r), rtol=1e-3, atol=1e-6 * profile(0.0).max())
-    assert np.all(core_values[r >= sc.core] == 0) and np.all(band_values[r >= sc.split] == 0)
-    assert np.all(core_values >= 0) and np.all(far_values > 0)  # the dipole is convex: every cap lies below it
+    for radius, part in zip(sc.radii, parts):
+        assert np.all(part[r >= radius] == 0)
+    assert np.all(parts[0] >= 0) and np.all(far_values > 0)  # the dipole is convex: every cap lies below it
     # The far field is C^1 at r_c: its slope from inside (2 b r_c) is the profile's.
     step = 1e-5 * sc.split
     slope = (profile(sc.split + step) - profile(sc.split - step)) / (2 * step)
     np.testing.assert_allclose(2 * far[1] * sc.split, slope, rtol=1e-4)
+
+
+def test_the_local_core_keeps_the_energy_and_is_smooth():
+    """Eq. M3: with a pixel footprint wider than twice the core width, the core is its energy over a smooth kernel:
+    the bands still sum to the profile's energy, and the lengths follow the footprint."""
+    profile = model_profile("dipole", material("marble"))
+    footprint = 4 * core_width(profile)
+    sc = scales(profile, 0.01, cell_size=footprint)
+    assert sc.local and sc.core == pytest.approx(1.5 * footprint)
+    far, core, bands = split(profile, sc.radii, local=True)
+    exact_core = split(profile, sc.radii)[1]
+    u = np.linspace(0, sc.core**2, BAND_TABLE)
+    energy = np.pi * np.trapezoid(core, u, axis=0)
+    np.testing.assert_allclose(energy, np.pi * np.trapezoid(exact_core, u, axis=0), rtol=1e-3)
+    assert np.all(np.diff(core, axis=0) <= 0)  # smooth, falling to 0 at r_0
+    assert not scales(profile, 0.01, cell_size=core_width(profile)).local  # resolved: as without a footprint
 
 
 def test_scales_follow_the_profile_and_the_accuracy():
@@ -158,6 +182,57 @@ def test_the_middle_band_is_summed_at_voxel_corners_for_dense_queries_and_at_spa
     assert _mean_rel(at_sparse, exact) < 0.01 and _mean_rel(at_dense[::32], exact) < 0.01
 
 
+@pytest.mark.slow
+def test_more_middle_bands_agree_with_the_exact_sum(monkeypatch):
+    """A far mesh kept small (as for an object many profile widths across) adds middle bands, each doubling r_c and
+    the mesh spacing: the sum stays within the default accuracy of the exact one."""
+    import convsss.transport.multiscale as ms
+
+    milk = model_profile("dipole", material("wholemilk"))
+    samples = _lit_sphere(20.0, 60000)
+    points = samples.position[::29] * 1.0
+    exact = make_transport("exact", samples, milk).exitance(points)
+    monkeypatch.setattr(ms, "FAR_CELLS", 1 << 12)
+    multi = make_transport("multiscale", samples, milk, FRAME)
+    assert multi.scales.levels >= 3
+    assert _mean_rel(multi.exitance(points), exact) < 0.01
+
+
+def _dense():
+    """A dense, absorbing medium: its profile is about 0.1 mm wide, far narrower than the samples below are apart."""
+    return model_profile("dipole", Material.from_reduced([50.0, 60.0, 70.0], [1.0, 2.0, 3.0]))
+
+
+def test_the_local_limit_gives_the_total_reflectance_times_the_irradiance():
+    """Eq. M3: a profile far narrower than the pixel footprint returns ``R_total E`` where the irradiance is smooth,
+    from samples too sparse to resolve it."""
+    profile = _dense()
+    samples = _lit_sphere(10.0, 40000)  # 0.18 mm apart
+    transport = make_transport("multiscale", samples, profile, FRAME, cell_size=0.5)
+    assert transport.scales.local
+    lit = np.flatnonzero(samples.irradiance[:, 0] > 0.3)[::20]
+    ratio = transport.exitance(samples.position[lit]) / (samples.irradiance[lit] * profile.total_reflectance)
+    np.testing.assert_allclose(ratio.mean(axis=0), 1.0, atol=0.005)  # measured 0.9993
+    assert np.sqrt(np.mean((ratio - 1.0) ** 2)) < 0.015  # the samples' discreteness: measured 0.8 %
+
+
+def test_the_local_limit_bounds_memory_and_samples_by_the_footprint():
+    """The plan of a dense object seen at a wide pixel: the transport's bytes fall, and the area that sizes the
+    samples grows as the footprint squared (so the samples follow the pixels)."""
+    profile = model_profile("pbd", material("skin1"))
+    bounds = (np.full(3, -20.0), np.full(3, 20.0))
+    sharp = MultiscaleTransport.planned_bytes(bounds, profile, 0, {"accuracy": 0.01})
+    wide = MultiscaleTransport.planned_bytes(bounds, profile, 0, {"accuracy": 0.01, "cell_size": 0.5})
+    assert wide < 0.5 * sharp
+    own = MultiscaleTransport.sample_area(profile, {"accuracy": 0.01})
+    assert own == pytest.approx(float(np.min(profile.effective_area())))
+    assert MultiscaleTransport.sample_area(profile, {"accuracy": 0.01, "cell_size": 0.5}) > 2 * own
+    dense = _dense()  # a footprint wider than the whole profile: the area goes as its square
+    areas = [MultiscaleTransport.sample_area(dense, {"accuracy": 0.01, "cell_size": f}) for f in (1.0, 2.0)]
+    assert areas[0] > 10 * float(np.min(dense.effective_area()))
+    assert areas[1] / areas[0] == pytest.approx(4.0, rel=0.1)
+
+
 def test_no_samples_give_no_exitance():
     empty = IrradianceSamples(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
     transport = make_transport("multiscale", empty, model_profile("dipole", material("skin1")), FRAME)
@@ -186,9 +261,16 @@ def test_bunny_at_two_sizes_within_one_percent_of_the_exact_sum(bunny_cases, nam
     assert _mean_rel(multi, exact) < 0.01
 
 
-def test_a_cell_list_too_large_is_refused_before_allocating():
-    """Beam diffusion's near-singular peak gives a core width of microns: on a 40 mm sphere the cell list would need
-    a billions-of-cubes offset table; a one-line error, not a MemoryError."""
+def test_a_core_of_microns_on_a_large_object_keeps_its_cell_lists_bounded():
+    """Beam diffusion's near-singular peak gives a core width of microns: on a 40 mm sphere cubes of that side would
+    need a billions-of-cubes offset table; the cubes grow instead (to CELL_LIST_CUBES), and the sum is the same."""
+    import convsss.transport.multiscale as ms
+
     samples = _lit_sphere(20.0, 2000)
-    with pytest.raises(ConvsssError, match="cell list .* use the hierarchical or exact transport"):
-        make_transport("multiscale", samples, model_profile("pbd", material("wholemilk")), FRAME)
+    profile = model_profile("pbd", material("wholemilk"))
+    transport = make_transport("multiscale", samples, profile, FRAME)
+    assert np.prod(transport._core_cells.dims) <= ms.CELL_LIST_CUBES
+    assert transport._core_cells.size > transport.scales.core
+    points = samples.position[::7] * 1.0
+    np.testing.assert_allclose(transport.exitance(points), make_transport("exact", samples, profile).exitance(points),
+                               rtol=0.01)

@@ -30,8 +30,9 @@ from .presets import any_named_media, check_boundary, check_color_model, named_m
 
 #: Mitsuba class names of the boundaries a translucent object may have.
 BOUNDARY_CLASSES = {"Null": "null", "SmoothDielectric": "dielectric", "RoughDielectric": "roughdielectric"}
-#: The object may span at most / at least this many mean free paths before the units look wrong.
-SPAN_LIMITS = (1e-3, 1e6)
+#: The object may span at least / at most this many mean free paths before the units look wrong (a 2 m panel of
+#: spectralon spans 4e4; a 40 mm bunny made 1000 times too large spans 1e5 in milk). It renders either way.
+SPAN_LIMITS = (1e-3, 5e4)
 #: Analytic shapes (Mitsuba class names) that bound a volume; disks, rectangles and cylinders are open.
 CLOSED_ANALYTIC = ("Sphere",)
 #: Stratified samples that estimate the world area of a shape under a map that is no similarity.

@@ -8,7 +8,9 @@ profile, the pixel footprint at its depth, its extent in the camera's frame, the
   of its visible points for a centre behind the camera), as the transport asks for it
   (:meth:`~convsss.transport.base.Transport.layer_cell`; the convolution's ``downsample`` divides it);
 - the surface samples ``N = max(sample_density A / h^2, profile_samples A / A_eff)``
-  (:func:`~convsss.scene.irradiance.sample_count`), the second rule capped by :data:`PROFILE_RULE_MEMORY` of the
+  (:func:`~convsss.scene.irradiance.sample_count`; ``A_eff`` the area the transport's sum averages over,
+  :meth:`~convsss.transport.base.Transport.sample_area`: the profile's own, or in the multiscale transport's local
+  limit one that grows with the pixel footprint), the second rule capped by :data:`PROFILE_RULE_MEMORY` of the
   memory guard and by :data:`MAX_IRRADIANCE_SECONDS`, never below the first (a warning says by how much the noise
   grows);
 - the memory: ``BYTES_PER_SAMPLE`` per sample plus what the transport will build
@@ -178,7 +180,8 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
     transport = p.transport_class()
     cell = transport.layer_cell(footprint, p.transport_params())
     count_pixel = sample_count(obj.area_mm2, cell, p.sample_density)
-    profile_area = float(np.min(obj.profile.effective_area()))
+    held_params = transport_params(p, footprint)
+    profile_area = transport.sample_area(obj.profile, held_params)
     count = wanted = sample_count(obj.area_mm2, cell, p.sample_density, profile_area, p.profile_samples)
     if count > count_pixel:
         count = max(count_pixel, min(count, sample_cap(scene, p)))
@@ -188,7 +191,7 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
                           f"the memory and time limits allow; {count} used: expect about "
                           f"{(wanted / count) ** 0.7:.1f}x that noise", SampleNoiseWarning, stacklevel=4)
     bounds = view_bounds(obj, frame, p.unit_mm)
-    held = transport.planned_bytes(bounds, obj.profile, count, transport_params(p, footprint))
+    held = transport.planned_bytes(bounds, obj.profile, count, held_params)
     check_memory(count * BYTES_PER_SAMPLE + held,
                  f"{count} surface samples of {obj.name!r} ({_span(obj, p.unit_mm)}) and its {p.transport} transport",
                  transport.memory_advice)

@@ -12,6 +12,8 @@ never here. A transport knows nothing of Mitsuba.
 import copy
 import dataclasses
 
+import numpy as np
+
 from ..parameters import check_parameters
 from ..samples import IrradianceSamples, ViewFrame, as_points
 from ..timing import StageTimer
@@ -72,6 +74,13 @@ class Transport:
         the camera's view frame, under ``params``: known before any sample is drawn, so that a render is refused
         before any work (:mod:`convsss.scene.plan`). None by default."""
         return 0
+
+    @classmethod
+    def sample_area(cls, profile, params):
+        """The area (mm^2) over which this transport's sum of Eq. 1 averages its samples under ``params``: the
+        renderer draws ``profile_samples`` samples per such area (:func:`~convsss.scene.irradiance.sample_count`).
+        The profile's smallest :meth:`~convsss.profiles.Profile.effective_area` by default."""
+        return float(np.min(profile.effective_area()))
 
     @property
     def query_batch(self):

@@ -34,6 +34,18 @@ and cancels where the irradiance is smooth) for a small fraction of the cost.
 One knob, ``accuracy`` (the relative error aimed at), sets every length from the profile's core width ``w`` (the
 radius where ``R_d`` falls to half its peak, smallest over the channels: about 0.8 mean free paths for the dipole);
 see :func:`scales`. The lengths are common to the channels, sized by the narrowest.
+
+**The local limit.** What the image cannot show need not be resolved. Given the pixel footprint ``f`` where the
+object is seen (``cell_size``), the lengths are set by ``w' = max(w, f / 2)``; where ``w' > w`` (a dense medium, a
+small image, a sharp-peaked model such as photon beam diffusion's) the core is narrower than the samples are apart,
+and is summed as its energy spread over a smooth kernel of radius ``r_1``,
+
+    R_core ~ E_core K(r),   K(r) = 3 / (pi r_1^2) (1 - r^2 / r_1^2)^2,   E_core = ∫ R_core dA,              (Eq. M3)
+
+the exitance's local limit ``M = E_core E + O(r_1^2 ∇^2 E)`` at the scale of the pixel (``K``'s rms radius is
+``r_1 / 2 = 0.75 f``, about that of a Gaussian pixel filter of half a pixel). The energy is kept exactly, the far
+mesh and the samples follow the image (:meth:`MultiscaleTransport.sample_area`), not the mean free path. A far
+field holding less than ``accuracy / 10`` of every channel's energy is dropped (:func:`far_energy`).
 """
 
 import math
@@ -57,6 +69,16 @@ BAND_TABLE = 4096
 FAR_TAIL = 1e-5
 #: Far-field kernel spectra, keyed by (profile, r_c, h, FFT shape).
 SPECTRA = KernelCache()
+#: The local limit's scale: the lengths follow ``max(w, LOCAL_SCALE f)`` for a pixel footprint ``f`` (Eq. M3).
+LOCAL_SCALE = 0.5
+#: A far field holding less than this share of ``accuracy`` of every channel's energy is dropped.
+FAR_SKIP = 0.1
+#: The far mesh's FFT cells at most, where more middle bands can keep it so (a mesh of 160^3 holds 4.1 M).
+FAR_CELLS = 1 << 22
+#: Middle bands at most (each doubles the far mesh's spacing).
+MAX_LEVELS = 24
+#: Cubes of a cell list at most (their offsets: 128 MiB), beyond which the cubes grow.
+CELL_LIST_CUBES = 1 << 24
 
 
 def core_width(profile):
@@ -84,9 +106,10 @@ def far_reach(profile):
 
 @dataclass(frozen=True)
 class Scales:
-    """The lengths of the multi-scale transport in mm: cluster side ``s`` of the core sums, that of the middle band
-    and the far-field deposit, core radius ``r_1``, voxel side ``g`` of the middle band, split radius ``r_c`` and far
-    mesh spacing ``h``."""
+    """The lengths of the multi-scale transport in mm: cluster side ``s`` of the core sums, that of the first middle
+    band, core radius ``r_0``, voxel side ``g`` of the first band, split radius ``r_c`` and far mesh spacing ``h``;
+    ``levels`` the middle bands ``L`` between ``r_0`` and ``r_c = 2^L r_0`` (:meth:`band`); ``local`` where the
+    lengths follow the pixel footprint rather than the profile (Eq. M3)."""
 
     cluster: float
     band_cluster: float
@@ -94,25 +117,43 @@ class Scales:
     voxel: float
     split: float
     mesh: float
+    levels: int = 1
+    local: bool = False
+
+    @property
+    def radii(self):
+        """``r_0 < r_1 < ... < r_L = r_c``, each twice the last."""
+        return tuple(self.core * 2**k for k in range(self.levels + 1))
+
+    def band(self, k):
+        """Middle band ``k`` (1 to ``levels``): its outer radius ``r_k``, cluster side and voxel side, each ``2^(k-1)``
+        times the first band's."""
+        return self.core * 2**k, self.band_cluster * 2 ** (k - 1), self.voxel * 2 ** (k - 1)
 
 
-def scales(profile, accuracy):
-    """The :class:`Scales` for ``accuracy`` from the profile's core width ``w`` (:func:`core_width`).
+def scales(profile, accuracy, cell_size=None, levels=1):
+    """The :class:`Scales` for ``accuracy`` from the profile's core width ``w`` (:func:`core_width`), or from
+    ``LOCAL_SCALE`` times the pixel footprint ``cell_size`` (mm) where that is larger (the local limit, Eq. M3), with
+    ``levels`` middle bands.
 
     The errors are second order in the cluster sides, the voxel side and the mesh spacing relative to the profile's
-    features, so these grow as ``sqrt(accuracy)``: ``s = w k``, ``2 s`` for the middle band (smooth at ``r_1``, it
+    features, so these grow as ``sqrt(accuracy)``: ``s = w k``, ``2 s`` for the middle band (smooth at ``r_0``, it
     needs no finer sources; measured on the five benchmark scenes at 800², the default's mean error grew from
     0.25-0.51 % to 0.27-0.61 % and the band's corner sums took a third of the time), ``g = 0.75 w k``,
-    ``h = 2.5 w k`` with ``k = sqrt(accuracy / 0.01)``; the split radii stay at ``r_1 = 3 w`` and ``r_c = 6 w``. (The
+    ``h = 2.5 w k`` with ``k = sqrt(accuracy / 0.01)``; the split radii stay at ``r_0 = 3 w`` and ``r_c = 6 w``. (The
     far field's quadratic B-splines, against trilinear tents at ``h = 2 w k``: mean error 0.61 -> 0.55 % on
     bust200, 0.40 -> 0.34 % on bunny40, lower on all five scenes, with half the mesh cells.) The
     factors were chosen by measurement against the exact sum (``convsss bench accuracy``) to stay below
-    ``accuracy`` on renders.
+    ``accuracy`` on renders. Each further band doubles ``r_c`` and ``h`` (the far field is smooth at ``r_c``): band
+    ``k`` is smooth at ``r_{k-1}`` and is summed as the first is at twice the lengths of the band before it.
     """
     w = core_width(profile)
+    local = cell_size is not None and LOCAL_SCALE * cell_size > w
+    w = LOCAL_SCALE * cell_size if local else w
     grow = math.sqrt(accuracy / 0.01)
+    wide = 2 ** (levels - 1)
     return Scales(cluster=w * grow, band_cluster=2.0 * w * grow, core=3.0 * w, voxel=0.75 * w * grow,
-                  split=6.0 * w, mesh=2.5 * w * grow)
+                  split=6.0 * w * wide, mesh=2.5 * w * grow * wide, levels=levels, local=local)
 
 
 def cap(fn, r):
@@ -125,22 +166,68 @@ def cap(fn, r):
     return value - b * r * r, b
 
 
-def split(profile, r_1, r_c):
-    """Eq. M2: the far cap ``(a, b)`` and the core and middle-band tables, each (BAND_TABLE, 3) uniform in ``r^2`` on
-    ``[0, r_1^2]`` and ``[0, r_c^2]`` (their last entry 0)."""
-    far = cap(profile, r_c)
+def split(profile, radii, local=False):
+    """Eq. M2 over the radii ``r_0 < ... < r_L = r_c`` (:attr:`Scales.radii`): the far cap ``(a, b)``, the core table
+    (BAND_TABLE, 3) uniform in ``r^2`` on ``[0, r_0^2]``, and the ``L`` middle bands' tables, band ``k`` on
+    ``[0, r_k^2]`` (the residual less the caps beyond ``r_{k-1}``, its cap inside), each table's last entry 0;
+    ``local``: the core as its energy over the smooth kernel of Eq. M3."""
+    caps = [cap(profile, radii[-1])]  # the far cap, then each band's, outermost first
 
-    def inside(r):  # R_d - R_far, inside r_c
+    def residual(r, caps):  # R_d less the caps, inside the innermost of their radii
         r = np.asarray(r, dtype=np.float64)
-        return np.asarray(profile(r), dtype=np.float64) - (far[0] + far[1] * r[..., None] ** 2)
+        out = np.asarray(profile(r), dtype=np.float64)
+        for a, b in caps:
+            out = out - (a + b * r[..., None] ** 2)
+        return out
 
-    mid = cap(inside, r_1)
-    r2 = np.linspace(0.0, r_1 * r_1, BAND_TABLE)[:, None]
-    core = inside(np.sqrt(r2[:, 0])) - (mid[0] + mid[1] * r2)
-    r2 = np.linspace(0.0, r_c * r_c, BAND_TABLE)[:, None]
-    band = np.where(r2 < r_1 * r_1, mid[0] + mid[1] * r2, inside(np.sqrt(r2[:, 0])))
-    core[-1] = band[-1] = 0.0
-    return far, np.ascontiguousarray(core), np.ascontiguousarray(band)
+    bands = []
+    for outer, inner in zip(radii[:0:-1], radii[-2::-1]):
+        held = list(caps)
+        caps.append(cap(lambda r, held=held: residual(r, held), inner))
+        r2 = np.linspace(0.0, outer * outer, BAND_TABLE)[:, None]
+        band = np.where(r2 < inner * inner, caps[-1][0] + caps[-1][1] * r2, residual(np.sqrt(r2[:, 0]), held))
+        band[-1] = 0.0
+        bands.insert(0, np.ascontiguousarray(band))
+    r_0 = radii[0]
+    r2 = np.linspace(0.0, r_0 * r_0, BAND_TABLE)[:, None]
+    if local:
+        # Eq. M3: E_core = the energy within r_0 less the caps' there (∫ 2 pi r (a + b r^2) dr = pi (a r^2 + b r^4/2)).
+        held = sum(a * r_0**2 + 0.5 * b * r_0**4 for a, b in caps)
+        energy = np.asarray(profile.energy_within(r_0), dtype=np.float64) - np.pi * held
+        core = energy * 3.0 / (np.pi * r_0**2) * (1.0 - r2 / r_0**2) ** 2
+    else:
+        core = residual(np.sqrt(r2[:, 0]), caps)
+    core[-1] = 0.0
+    return caps[0], np.ascontiguousarray(core), bands
+
+
+def far_energy(profile, r_c, far):
+    """Per channel, the share of the profile's energy that its far field ``R_far`` (Eq. M2, cap ``far``) holds."""
+    inner = np.pi * (far[0] * r_c**2 + 0.5 * far[1] * r_c**4)
+    total = np.asarray(profile.total_reflectance, dtype=np.float64)
+    outer = total - np.asarray(profile.energy_within(r_c), dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(total > 0, (inner + outer) / np.where(total > 0, total, 1.0), 0.0)
+
+
+def summed_area(profile, radii, far, core, bands):
+    """The effective area (:meth:`~convsss.profiles.Profile.effective_area`, uncut: the tables have no singular
+    peak) of the profile as the bands sum it, ``(∫ R dA)^2 / ∫ R^2 dA`` per channel (mm^2, shape (3,)), for the
+    ``far`` cap and the ``core`` and ``bands`` tables of :func:`split` over ``radii``: with the core of Eq. M3, it
+    grows as the pixel footprint squared."""
+    u = np.linspace(0.0, radii[-1] ** 2, BAND_TABLE)
+    inner = far[0] + far[1] * u[:, None]
+    for radius, table in zip(radii, [core, *bands]):
+        inner = inner + np.stack([np.interp(u, np.linspace(0.0, radius**2, BAND_TABLE), table[:, c], right=0.0)
+                                  for c in range(3)], axis=1)
+    second = np.pi * np.trapezoid(inner**2, u, axis=0)  # dA = pi d(r^2)
+    r_scale, ds, values = profile.radial_table()
+    r = r_scale * np.expm1(ds * np.arange(len(values)))
+    out = r >= radii[-1]
+    second += np.trapezoid(2.0 * np.pi * r[out, None] * values[out] ** 2, r[out], axis=0)
+    total = np.asarray(profile.total_reflectance, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(second > 0, total * total / np.where(second > 0, second, 1.0), np.inf)
 
 
 @numba.njit(parallel=True, fastmath=True, cache=True)
@@ -204,9 +291,20 @@ def far_bytes(fft_shape):
     return 36 * int(np.prod(np.asarray(fft_shape, dtype=np.float64)))
 
 
+def cube_side(extent, size):
+    """The side of a :class:`CellList`'s cubes over ``extent`` (3,) mm: ``size``, or as much larger as keeps them at
+    most :data:`CELL_LIST_CUBES` (a surface far larger than its profile's core: the cubes' offsets are held for the
+    whole box, the clusters only on the surface)."""
+    extent = np.maximum(np.asarray(extent, dtype=np.float64), 0.0)
+    while float(np.prod(np.maximum(np.ceil(extent / size), 1))) > CELL_LIST_CUBES:
+        size *= 1.25
+    return size
+
+
 def cell_list_bytes(lo, hi, size):
     """The start offsets of a :class:`CellList` of cubes of side ``size`` over ``lo``, ``hi``: one int64 a cube."""
-    dims = np.maximum(np.ceil((np.asarray(hi) - np.asarray(lo)) / size), 1)
+    extent = np.asarray(hi) - np.asarray(lo)
+    dims = np.maximum(np.ceil(extent / cube_side(extent, size)), 1)
     return 8 * (float(np.prod(dims)) + 1)
 
 
@@ -590,12 +688,13 @@ class CellList:
     ``r_1``, and visits 5^3 of them: 0.7 times the clusters that 3^3 cubes of ``r_c`` hold on a surface.)"""
 
     def __init__(self, position, flux, origin, radius, size):
+        extent = position.max(axis=0) - origin if len(position) else np.zeros(3)
+        size = cube_side(extent, size)
         self.origin, self.radius, self.size = origin, radius, size
         self.reach = math.ceil(radius / size - 1e-9)
-        extent = position.max(axis=0) - origin if len(position) else np.zeros(3)
         self.dims = np.maximum(np.ceil(extent / size).astype(np.int64), 1)
-        # Its start offsets, one int64 a cube: refused before allocating (a profile whose core is far narrower than
-        # the object, e.g. a near-singular peak, asks for billions).
+        # Its start offsets, one int64 a cube (at most CELL_LIST_CUBES of them, :func:`cube_side`): refused before
+        # allocating where even those do not fit.
         cubes = " x ".join(map(str, self.dims))
         check_memory(8 * (float(np.prod(self.dims.astype(np.float64))) + 1),
                      f"the offsets of the multiscale transport's cell list ({cubes} cubes of {size:.3g} mm)",
@@ -676,6 +775,10 @@ class MultiscaleTransport(Transport):
         Parameter("accuracy", float, 0.01, "Relative error aimed at by the multiscale transport: sets its cluster "
                   "and voxel sizes, split radii and far-field mesh from the profile's core width.", low=0.0,
                   low_open=True, high=0.5),
+        Parameter("cell_size", float, None, "The pixel footprint in mm where the object is seen (the renderer "
+                  "sets it): the profile's features narrower than half of it are summed as their energy over a "
+                  "smooth kernel (the local limit), so that the work follows the image.", low=0.0, low_open=True,
+                  exposed=False),
         Parameter("memory_limit", float, None, "Bytes the far-field mesh may use (default: what the machine has "
                   "available).", low=0.0, low_open=True, exposed=False),
     )
@@ -683,40 +786,78 @@ class MultiscaleTransport(Transport):
     memory_advice = "raise the transport's accuracy (a coarser far-field mesh), or use the hierarchical transport"
 
     @classmethod
+    def _split(cls, profile, params, lo, hi):
+        """The :class:`Scales` under ``params`` for samples within ``lo``, ``hi`` (3,) of the view frame, and the
+        profile's split (:func:`split`): as few middle bands as keep the far mesh within :data:`FAR_CELLS` FFT cells
+        (or its field below :data:`FAR_SKIP`), one where it fits."""
+        accuracy, reach = params.get("accuracy", 0.01), far_reach(profile)
+        for levels in range(1, MAX_LEVELS + 1):
+            sc = scales(profile, accuracy, params.get("cell_size"), levels)
+            parts = split(profile, sc.radii, sc.local)
+            if not cls._far_kept(profile, sc, parts[0], params):
+                break
+            if np.prod(np.asarray(far_mesh(sc, reach, lo, hi)[2], dtype=np.float64)) <= FAR_CELLS:
+                break
+        return sc, parts
+
+    @classmethod
+    def _far_kept(cls, profile, sc, far, params):
+        """Whether the far field holds enough energy to be summed (:data:`FAR_SKIP`)."""
+        return bool(np.max(far_energy(profile, sc.split, far)) >= FAR_SKIP * params.get("accuracy", 0.01))
+
+    @classmethod
     def planned_bytes(cls, bounds, profile, count, params):
-        """The far-field mesh's spectra and the two cell lists' offsets (:func:`far_mesh`, :class:`CellList`)."""
-        sc = scales(profile, params.get("accuracy", 0.01))
+        """The far-field mesh's spectra and the cell lists' offsets (:func:`far_mesh`, :class:`CellList`)."""
         lo, hi = bounds
-        _, _, fft_shape = far_mesh(sc, far_reach(profile), lo, hi)
-        return int(far_bytes(fft_shape) + cell_list_bytes(lo, hi, sc.core) + cell_list_bytes(lo, hi, 0.5 * sc.split))
+        sc, (far, _, _) = cls._split(profile, params, lo, hi)
+        held = cell_list_bytes(lo, hi, sc.core)
+        held += sum(cell_list_bytes(lo, hi, 0.5 * sc.band(k)[0]) for k in range(1, sc.levels + 1))
+        if cls._far_kept(profile, sc, far, params):
+            held += far_bytes(far_mesh(sc, far_reach(profile), lo, hi)[2])
+        return int(held)
+
+    @classmethod
+    def sample_area(cls, profile, params):
+        """The smallest effective area of the profile as the bands sum it (:func:`summed_area`, with one middle
+        band): the profile's own where it is resolved, growing as the pixel footprint squared in the local limit
+        (Eq. M3)."""
+        sc = scales(profile, params.get("accuracy", 0.01), params.get("cell_size"))
+        if not sc.local:
+            return super().sample_area(profile, params)
+        return float(np.min(summed_area(profile, sc.radii, *split(profile, sc.radii, sc.local))))
 
     def __init__(self, samples, profile, frame=None, **params):
         super().__init__(samples, profile, frame, **params)
-        with self.timings("kernels"):
-            self.scales = sc = scales(profile, self.params["accuracy"])
-            self._far_cap, self._core, self._band = split(profile, sc.core, sc.split)
         with self.timings("clusters"):  # the samples' places: which cluster each falls in, whatever its flux
             self._view = self._to_view(samples.position)
             self._lo, self._hi = bounds(self._view)
+        with self.timings("kernels"):
+            self.scales, (self._far_cap, self._core, self._band_tables) = self._split(profile, self.params,
+                                                                                      self._lo, self._hi)
+            sc = self.scales
+        with self.timings("clusters"):
             side = sheet_side(None if samples.normal is None else self._to_view(samples.normal, vectors=True))
             self._fine = group(cube_cells(self._view, self._lo, sc.cluster), side)
-            self._coarse = group(self._fine.cells // round(sc.band_cluster / sc.cluster), self._fine.side)
+            self._groups = [group(self._fine.cells // round(sc.band(k)[1] / sc.cluster), self._fine.side)
+                            for k in range(1, sc.levels + 1)]
         self._build()
 
     def _build(self):
         """Everything that depends on the samples' flux: the clusters' flux and centroids, the cell lists, the far
-        field and the middle band."""
+        field and the middle bands."""
         sc, lo, hi = self.scales, self._lo, self._hi
         with self.timings("clusters"):
             fine = merge(self._fine, self._view, self.samples.area, self.samples.flux)
-            coarse = merge(self._coarse, fine.centre, fine.area, fine.flux)
+            coarse = [merge(g, fine.centre, fine.area, fine.flux) for g in self._groups]
             self.clusters = len(fine)
         with self.timings("cell_lists"):
             self._core_cells = CellList(fine.centre, fine.flux, lo, sc.core, sc.core)
-            self._band_cells = CellList(coarse.centre, coarse.flux, lo, sc.split, 0.5 * sc.split)
+            band_cells = [CellList(c.centre, c.flux, lo, sc.band(k)[0], 0.5 * sc.band(k)[0])
+                          for k, c in enumerate(coarse, start=1)]
         self._far_field(fine.centre, fine.flux, lo, hi)
         with self.timings("band"):
-            self._band_corners = BandCorners(self._band_cells, self._band, fine.centre, lo, hi, sc.voxel)
+            self._bands = [BandCorners(cells, table, fine.centre, lo, hi, sc.band(k)[2])
+                           for k, (cells, table) in enumerate(zip(band_cells, self._band_tables), start=1)]
 
     def _relit(self, samples):
         """The same places and clusters with the new samples' flux: only :meth:`_build` runs again."""
@@ -728,6 +869,10 @@ class MultiscaleTransport(Transport):
         The mesh reaches ``r_c`` past the samples (queries off the surface within that distance read it; farther
         ones read its border); float32 throughout (the error aimed at is far above its round-off).
         """
+        self._field = None
+        if not self._far_kept(self.profile, self.scales, self._far_cap, self.params):
+            self._mesh_origin, self.fft_shape = lo, None
+            return
         h = self.scales.mesh
         reach = far_reach(self.profile)
         lo, shape, fft_shape = far_mesh(self.scales, reach, lo, hi)
@@ -755,19 +900,23 @@ class MultiscaleTransport(Transport):
     def _exitance(self, points):
         view = self._to_view(points)
         out = np.zeros((len(points), 3))
-        with self.timings("far_lookup"):
-            _interpolate(view, self._mesh_origin, self.scales.mesh, self._field, out)
+        if self._field is not None:
+            with self.timings("far_lookup"):
+                _interpolate(view, self._mesh_origin, self.scales.mesh, self._field, out)
         with self.timings("band"):
-            self._band_corners.add(view, out)
+            for band in self._bands:
+                band.add(view, out)
         with self.timings("core_sum"):
             self._core_cells.add_sum(view, self._core, out)
         return np.maximum(out, 0.0)
 
     @property
     def stats(self):
-        """The base stats plus the lengths chosen, the cluster count and the far-field FFT shape."""
+        """The base stats plus the lengths chosen, the cluster count and the far-field FFT shape (None where the far
+        field is dropped)."""
         return {**super().stats, "scales_mm": dict(vars(self.scales)), "clusters": self.clusters,
-                "band_corners": self._band_corners.count, "fft_shape": list(self.fft_shape)}
+                "band_corners": sum(b.count for b in self._bands),
+                "fft_shape": None if self.fft_shape is None else list(self.fft_shape)}
 
 
 register_transport(MultiscaleTransport)
