@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 import convsss
-from convsss.errors import ConvsssError
 from convsss.scene import irradiance
 from convsss.scene.quick import demo_mesh, quick_scene
 
@@ -42,12 +41,17 @@ def test_an_object_far_too_large_for_its_units_warns_naming_its_span_and_plans(m
     """A unit mistake, an object 1000 times too large (issue 30, defect 9; issue 33, item 5): a one-line warning
     naming its size in mean free paths and unit_mm, and a plan whose work is that of the pixels."""
     scene = _bunny(mi, "wholemilk", 4e4)
+    integrator = scene.integrator()
     with pytest.warns(UserWarning, match=r"mean free paths .*unit_mm = 1"):
-        (plan,) = scene.integrator()._survey(scene, scene.sensors()[0])[3].objects
-    small = _bunny(mi, "wholemilk", 40.0)
-    (usual,) = small.integrator()._survey(small, small.sensors()[0])[3].objects
-    # A footprint far wider than the profile: the samples reach the local limit's bound, 2.5 times the 40 mm one's.
-    assert plan.transport_bytes < 2**28 and plan.samples < 3 * usual.samples
+        objects, _, _, survey = integrator._survey(scene, scene.sensors()[0])
+    (plan,) = survey.objects
+    assert plan.transport_bytes < 2**28
+    # A footprint f far wider than the profile: the samples are profile_samples per effective area of the local
+    # limit's kernel (1 - r^2 / r_0^2)^2 alone, 5 pi r_0^2 / 9 with r_0 = f (Eq. M3).
+    kernel_area = 5 * np.pi * plan.pixel_footprint_mm**2 / 9
+    assert plan.profile_area_mm2 == pytest.approx(kernel_area, rel=0.02)
+    wanted = integrator.params.profile_samples * objects[0].area_mm2 / kernel_area
+    assert plan.samples == pytest.approx(wanted, rel=0.02)
 
 
 @pytest.mark.slow

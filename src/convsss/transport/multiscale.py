@@ -36,14 +36,17 @@ radius where ``R_d`` falls to half its peak, smallest over the channels: about 0
 see :func:`scales`. The lengths are common to the channels, sized by the narrowest.
 
 **The local limit.** What the image cannot show need not be resolved. Given the pixel footprint ``f`` where the
-object is seen (``cell_size``), the lengths are set by ``w' = max(w, f / 2)``; where ``w' > w`` (a dense medium, a
+object is seen (``cell_size``), the lengths are set by ``w' = max(w, f / 3)``; where ``w' > w`` (a dense medium, a
 small image, a sharp-peaked model such as photon beam diffusion's) the core is narrower than the samples are apart,
-and is summed as its energy spread over a smooth kernel of radius ``r_1``,
+and its sum is replaced by its local limit, its energy times the irradiance averaged over the samples around
+the query with a smooth kernel of radius ``r_0``:
 
-    R_core ~ E_core K(r),   K(r) = 3 / (pi r_1^2) (1 - r^2 / r_1^2)^2,   E_core = ∫ R_core dA,              (Eq. M3)
+    M_core(x) = E_core sum_i K_i Phi_i / sum_i K_i A_i,   K_i = (1 - |x - x_i|^2 / r_0^2)^2,
+    E_core = ∫ R_core dA,                                                                                (Eq. M3)
 
-the exitance's local limit ``M = E_core E + O(r_1^2 ∇^2 E)`` at the scale of the pixel (``K``'s rms radius is
-``r_1 / 2 = 0.75 f``, about that of a Gaussian pixel filter of half a pixel). The energy is kept exactly, the far
+``M = E_core E(x) + O(r_0^2 ∇^2 E)`` at the scale of the pixel (``K``'s rms radius is ``r_0 / 2 = f / 2``). As a
+ratio it keeps the energy wherever the samples lie (a concave or thin part gathers more surface within ``r_0``
+than a plane: a sum of ``E_core K`` would be 1-3 % bright there on a 32² bunny) and it has little noise. The far
 mesh and the samples follow the image (:meth:`MultiscaleTransport.sample_area`), not the mean free path. A far
 field holding less than ``accuracy / 10`` of every channel's energy is dropped (:func:`far_energy`).
 """
@@ -69,8 +72,10 @@ BAND_TABLE = 4096
 FAR_TAIL = 1e-5
 #: Far-field kernel spectra, keyed by (profile, r_c, h, FFT shape).
 SPECTRA = KernelCache()
-#: The local limit's scale: the lengths follow ``max(w, LOCAL_SCALE f)`` for a pixel footprint ``f`` (Eq. M3).
-LOCAL_SCALE = 0.5
+#: The local limit's scale: the lengths follow ``max(w, LOCAL_SCALE f)`` for a pixel footprint ``f`` (Eq. M3), so
+#: ``r_0 = f``. (Against the resolved sum on a 40 mm skin1 bunny at 32², the means per channel: 0.4-0.8 % low; at
+#: ``f / 2``, 0.3-1.5 % low.)
+LOCAL_SCALE = 1.0 / 3.0
 #: A far field holding less than this share of ``accuracy`` of every channel's energy is dropped.
 FAR_SKIP = 0.1
 #: The far mesh's FFT cells at most, where more middle bands can keep it so (a mesh of 160^3 holds 4.1 M).
@@ -586,6 +591,40 @@ def _band_sum(view, position, flux, starts, origin, size, dims, reach, table, r_
         out[k, 2] += m2
 
 
+@numba.njit(parallel=True, fastmath=True, cache=True)
+def _local_sum(view, position, flux, area, starts, origin, size, dims, reach, r_02, energy, out):
+    """Eq. M3: ``out[k] += E_core`` times the irradiance around ``view[k]`` averaged over the clusters with the
+    weights ``(1 - d^2 / r_0^2)^2``, ``sum w_j Phi_j / sum w_j A_j`` (sorted into cubes as for :func:`_band_sum`)."""
+    for k in numba.prange(view.shape[0]):
+        px, py, pz = view[k, 0], view[k, 1], view[k, 2]
+        ci = int(np.floor((px - origin[0]) / size))
+        cj = int(np.floor((py - origin[1]) / size))
+        cm = int(np.floor((pz - origin[2]) / size))
+        m0 = m1 = m2 = held = 0.0
+        for i in range(max(ci - reach, 0), min(ci + reach + 1, dims[0])):
+            for j in range(max(cj - reach, 0), min(cj + reach + 1, dims[1])):
+                base = (i * dims[1] + j) * dims[2]
+                first = starts[base + min(max(cm - reach, 0), dims[2])]
+                last = starts[base + max(min(cm + reach + 1, dims[2]), 0)]
+                for q in range(first, last):
+                    dx = position[q, 0] - px
+                    dy = position[q, 1] - py
+                    dz = position[q, 2] - pz
+                    d2 = dx * dx + dy * dy + dz * dz
+                    if d2 >= r_02:
+                        continue
+                    t = 1.0 - d2 / r_02
+                    wt = t * t
+                    held += wt * area[q]
+                    m0 += wt * flux[q, 0]
+                    m1 += wt * flux[q, 1]
+                    m2 += wt * flux[q, 2]
+        if held > 0.0:
+            out[k, 0] += energy[0] * m0 / held
+            out[k, 1] += energy[1] * m1 / held
+            out[k, 2] += energy[2] * m2 / held
+
+
 @numba.njit(cache=True)
 def _voxel_set(view, origin, size, dims):
     """The voxels of side ``size`` (keys ``(i dims[1] + j) dims[2] + m``) holding the points ``view`` (N, 3), all
@@ -687,7 +726,7 @@ class CellList:
     ``reach = ceil(radius / size)`` of its own. (The middle band's list has cubes of ``r_c / 2``, as the core's of
     ``r_1``, and visits 5^3 of them: 0.7 times the clusters that 3^3 cubes of ``r_c`` hold on a surface.)"""
 
-    def __init__(self, position, flux, origin, radius, size):
+    def __init__(self, position, flux, origin, radius, size, area=None):
         extent = position.max(axis=0) - origin if len(position) else np.zeros(3)
         size = cube_side(extent, size)
         self.origin, self.radius, self.size = origin, radius, size
@@ -702,11 +741,18 @@ class CellList:
         order, self.starts = _cell_list(position, origin, size, self.dims)
         self.position = np.ascontiguousarray(position[order])
         self.flux = np.ascontiguousarray(flux[order])
+        self.area = None if area is None else np.ascontiguousarray(area[order])  # for the local limit's average
 
     def add_sum(self, view, table, out):
         """``out += sum_j R(|x - x_j|) Phi_j`` at ``view`` (K, 3) for the band ``table`` (on ``[0, radius^2]``)."""
         _band_sum(view, self.position, self.flux, self.starts, self.origin, self.size, self.dims, self.reach, table,
                   self.radius * self.radius, out)
+
+    def add_average(self, view, energy, out):
+        """``out += energy`` (3,) times the irradiance averaged within ``radius`` of ``view`` (K, 3) (Eq. M3; the
+        list must hold the clusters' ``area``)."""
+        _local_sum(view, self.position, self.flux, self.area, self.starts, self.origin, self.size, self.dims,
+                   self.reach, self.radius * self.radius, energy, out)
 
 
 class BandCorners:
@@ -851,7 +897,7 @@ class MultiscaleTransport(Transport):
             coarse = [merge(g, fine.centre, fine.area, fine.flux) for g in self._groups]
             self.clusters = len(fine)
         with self.timings("cell_lists"):
-            self._core_cells = CellList(fine.centre, fine.flux, lo, sc.core, sc.core)
+            self._core_cells = CellList(fine.centre, fine.flux, lo, sc.core, sc.core, fine.area if sc.local else None)
             band_cells = [CellList(c.centre, c.flux, lo, sc.band(k)[0], 0.5 * sc.band(k)[0])
                           for k, c in enumerate(coarse, start=1)]
         self._far_field(fine.centre, fine.flux, lo, hi)
@@ -907,7 +953,10 @@ class MultiscaleTransport(Transport):
             for band in self._bands:
                 band.add(view, out)
         with self.timings("core_sum"):
-            self._core_cells.add_sum(view, self._core, out)
+            if self.scales.local:  # Eq. M3, E_core from the kernel's peak: K(0) = 3 / (pi r_0^2)
+                self._core_cells.add_average(view, self._core[0] * np.pi * self.scales.core**2 / 3.0, out)
+            else:
+                self._core_cells.add_sum(view, self._core, out)
         return np.maximum(out, 0.0)
 
     @property
