@@ -32,3 +32,17 @@ def test_cli_quick_json_without_command_lines():
     data = json.loads(result.output)
     assert data["commands"] == {}
     assert [(r["width"], r["spp"]) for r in data["rows"]] == [(256, 1), (256, 4)]
+
+
+@pytest.mark.slow
+def test_scaling_rows_follow_their_commands():
+    """Two tiny configurations in fresh processes: a row per configuration, the samples and pixels of its stats."""
+    from convsss.bench.render import bench_scaling, scaling_configs, scaling_table
+
+    configs = scaling_configs(widths=(32,), spans=(10,), spp=1)
+    assert [(axis, value) for axis, value, _ in configs] == [("width", 32), ("mean free paths", 10)]
+    rows = bench_scaling(widths=(32,), spans=(10,), runs=1, spp=1, progress=False)
+    assert [r["pixels"] for r in rows] == [32 * 32, 256 * 256]
+    assert all(r["seconds"] > r["stages_s"]["shading"] > 0 and r["peak_bytes"] > 2**20 and r["samples"] > 0
+               for r in rows)
+    assert "mean free paths" in scaling_table(rows)

@@ -10,7 +10,8 @@ and ``convsss`` only replaces what happens where they meet the translucent objec
 
 ``commands``: the wall time of whole command lines in fresh processes (interpreter start, imports, Mitsuba variant,
 numba cache, scene, render, files): ``convsss --version`` and ``convsss render`` of the demo at 64² and at 800²,
-1 spp.
+1 spp. ``scaling``: whole render commands in fresh processes against the image size (the demo, 64² to 1600²) and
+against the object's size in mean free paths (10 to 10 000, at 256²), per stage, with their peak memory.
 """
 
 import statistics
@@ -29,6 +30,9 @@ SPPS = (1, 4, 16)
 STAGES = ("samples", "irradiance", "indirect", "transport", "screen", "shading")
 #: The demo's object.
 DEMO = {"material": "wholemilk", "size_mm": 40.0}
+#: The scaling benchmark's image widths (the demo) and object spans in mean free paths (the bunny at 256²).
+SCALING_WIDTHS = (64, 128, 256, 512, 800, 1600)
+SCALING_SPANS = (10, 100, 1000, 10000)
 
 
 def demo_scene(mi, width, spp):
@@ -114,6 +118,81 @@ def bench_commands(runs=5, progress=True):
             result[name] = statistics.median(seconds[1:])
         bar.close()
     return result
+
+
+def _command(args, folder):
+    """One ``convsss`` command line in a fresh process: ``(wall seconds, peak RSS in bytes, its --stats JSON)``."""
+    import json
+    import os
+
+    stats = Path(folder) / "stats.json"
+    start = time.perf_counter()
+    child = subprocess.Popen([sys.executable, "-c", "from convsss.cli import main; main()", *args, "--no-progress",
+                              "--stats", str(stats), "-o", str(Path(folder) / "image")],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(child.pid, 0)
+    seconds = time.perf_counter() - start
+    child.returncode = os.waitstatus_to_exitcode(status)
+    error = child.stderr.read().decode(errors="replace").strip().splitlines()
+    child.stderr.close()
+    if child.returncode:
+        raise RuntimeError(f"convsss {' '.join(args)} failed: {error[-1] if error else child.returncode}")
+    return seconds, usage.ru_maxrss * 1024, json.loads(stats.read_text())
+
+
+def scaling_configs(widths=SCALING_WIDTHS, spans=SCALING_SPANS, spp=4):
+    """The command lines of :func:`bench_scaling`: ``(axis, value, args)``, the demo at each width, then the demo's
+    bunny (no floor) at 256² sized to each span in mean free paths of its material (the smallest channel's)."""
+    from ..materials import material
+
+    demo = ["render", "--mesh", "bunny", "--material", DEMO["material"], "--spp", str(spp)]
+    mfp = float(min(material(DEMO["material"]).mfp_mm))
+    out = [("width", w, demo + ["--size-mm", f"{DEMO['size_mm']:g}", "--floor", "--width", str(w), "--height",
+                                str(w)]) for w in widths]
+    out += [("mean free paths", n, demo + ["--size-mm", f"{n * mfp:.6g}", "--width", "256", "--height", "256"])
+            for n in spans]
+    return out
+
+
+def bench_scaling(widths=SCALING_WIDTHS, spans=SCALING_SPANS, runs=3, spp=4, progress=True):
+    """Whole ``convsss render`` commands in fresh processes (warm caches: one untimed run first) against the image
+    size and against the object's size in mean free paths: rows ``{axis, value, seconds, stages_s, peak_bytes,
+    samples, pixels}``, medians of ``runs``."""
+    configs = scaling_configs(widths, spans, spp)
+    bar = tqdm(total=len(configs) * runs + 1, desc="bench scaling", unit="run", disable=not progress)
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        _command(configs[0][2], folder)  # fills the numba and Dr.Jit caches
+        bar.update()
+        for axis, value, args in configs:
+            bar.set_postfix_str(f"{axis} {value:g}")
+            runs_out = []
+            for _ in range(runs):
+                runs_out.append(_command(args, folder))
+                bar.update()
+            stats = runs_out[-1][2]
+            rows.append({"axis": axis, "value": value, "seconds": statistics.median(r[0] for r in runs_out),
+                         "stages_s": {name: statistics.median(r[2]["seconds"].get(name, 0.0) for r in runs_out)
+                                      for name in STAGES},
+                         "peak_bytes": max(r[1] for r in runs_out), "samples": stats["samples"],
+                         "pixels": stats["film"]["size"][0] * stats["film"]["size"][1]})
+    bar.close()
+    return rows
+
+
+def scaling_table(rows):
+    """The rows of :func:`bench_scaling` as a text table, with each row's time over the first row's of its axis."""
+    head = (f"{'axis':>16} {'value':>7} " + " ".join(f"{name:>10}" for name in STAGES)
+            + f" {'command':>8} {'x first':>7} {'samples':>9} {'peak GiB':>8}")
+    lines, first = [head], {}
+    for r in rows:
+        base = first.setdefault(r["axis"], r["seconds"])
+        lines.append(f"{r['axis']:>16} {r['value']:>7g} " + " ".join(f"{r['stages_s'][n]:>10.3f}" for n in STAGES)
+                     + f" {r['seconds']:>8.2f} {r['seconds'] / base:>7.2f} {r['samples']:>9d}"
+                     + f" {r['peak_bytes'] / 2**30:>8.2f}")
+    lines.append("seconds, medians of fresh-process commands (warm caches); stages from --stats; x first = the "
+                 "command's time over the first row's of its axis; peak = the largest resident set of the runs")
+    return "\n".join(lines)
 
 
 def render_table(rows, commands=None):

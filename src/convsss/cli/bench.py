@@ -52,11 +52,16 @@ def bench_transport_command(quick, runs, as_json, progress):
 @click.option("--commands/--no-commands", default=None,
               help="Also time whole command lines in fresh processes: convsss --version, the demo at 64² and at "
                    "800², 1 spp. [default: on; off with --quick]")
+@click.option("--scaling", is_flag=True,
+              help="Instead: whole render commands in fresh processes (warm caches), 4 spp, against the image size "
+                   "(the demo at 64² to 1600²) and the object's size in mean free paths (10 to 10 000, the bunny "
+                   "at 256²), per stage, with their peak memory; --runs per configuration (default 3).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print {rows, commands} as JSON: per row width, spp, stages_s, convsss_s, path_s, shading_ratio, "
-                   "total_ratio, screen_queries, exitance_lookups.")
+                   "total_ratio, screen_queries, exitance_lookups (with --scaling: {scaling} rows of axis, value, "
+                   "seconds, stages_s, peak_bytes, samples, pixels).")
 @PROGRESS
-def bench_render_command(quick, runs, commands, as_json, progress):
+def bench_render_command(quick, runs, commands, scaling, as_json, progress):
     """The demo scene rendered per stage beside Mitsuba's path integrator on the same scene.
 
     The demo of `make demo` (40 mm wholemilk bunny, dielectric boundary, floor, key and back light) at 256², 512²
@@ -64,8 +69,12 @@ def bench_render_command(quick, runs, commands, as_json, progress):
     (alternating) of every convsss stage, of its whole render and of Mitsuba's path. The headline is shading / path
     at equal spp.
     """
-    from ..bench.render import bench_commands, bench_render, render_table
+    from ..bench.render import bench_commands, bench_render, bench_scaling, render_table, scaling_table
 
+    if scaling:
+        rows = bench_scaling(runs=runs or 3, progress=progress)
+        click.echo(json.dumps({"scaling": rows}, indent=1) if as_json else scaling_table(rows))
+        return
     if quick:
         rows = bench_render(resolutions=(256,), spps=(1, 4), runs=runs or 3, progress=progress)
     else:
