@@ -210,6 +210,7 @@ def test_the_local_limit_gives_the_total_reflectance_times_the_irradiance():
     samples = _lit_sphere(10.0, 40000)  # 0.18 mm apart
     transport = make_transport("multiscale", samples, profile, FRAME, cell_size=1.5)
     assert transport.scales.local
+    assert transport.fft_shape is None  # nothing of the profile reaches r_c = 2 r_0: the far field is dropped
     lit = np.flatnonzero(samples.irradiance[:, 0] > 0.3)[::20]
     ratio = transport.exitance(samples.position[lit]) / (samples.irradiance[lit] * profile.total_reflectance)
     # The kernel's O(r_0^2 ∇^2 E): on a sphere of radius R (the area within a chord d is pi d^2), E ~ cos averages
