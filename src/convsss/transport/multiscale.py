@@ -1,16 +1,20 @@
 """The multi-scale transport: the exact sum's accuracy at any object size, by splitting the profile by distance.
 
-As particle–particle/particle–mesh N-body codes and multilevel summation split a force, the profile is split at two
-radii ``r_1 < r_c`` into a core, a middle band and a far field, ``R_d = R_core + R_mid + R_far``, each piece smooth
-at the scale of its split radius. A split at ``r`` replaces ``f`` inside ``r`` by a cap,
+As particle–particle/particle–mesh N-body codes and multilevel summation split a force, the profile is split at
+radii ``r_0 < r_1 < ... < r_L = r_c``, each twice the last, into a core, ``L`` middle bands and a far field,
+``R_d = R_core + R_1 + ... + R_L + R_far``, each piece smooth at the scale of its inner split radius. A split at
+``r`` replaces ``f`` inside ``r`` by a cap,
 
     cap_r[f](x) = a + b x^2,   a, b per channel matching the value and slope of f at r,                 (Eq. M1)
 
 so that ``f - cap_r[f]`` is zero from ``r`` on and ``cap_r[f]`` is C^1:
 
     R_far  = R_d beyond r_c, cap_{r_c}[R_d] inside;                                                      (Eq. M2)
-    R_mid  = R_d - R_far beyond r_1, cap_{r_1}[R_d - R_far] inside (zero from r_c on);
-    R_core = R_d - R_far - R_mid (zero from r_1 on; >= 0 for a profile convex inside r_1, such as the dipole).
+    R_k    = f_k beyond r_{k-1}, cap_{r_{k-1}}[f_k] inside (zero from r_k on), f_k = R_d - R_far - R_L - ... - R_{k+1};
+    R_core = f_0 (zero from r_0 on; >= 0 for a profile convex inside r_0, such as the dipole).
+
+One middle band (``L = 1``) unless the far mesh would hold more than :data:`FAR_CELLS` cells (an object many
+profile widths across): each further band doubles ``r_c`` and the mesh spacing.
 
 - **Far field** ``sum_i R_far(|x - x_i|) Phi_i``: smooth at the scale ``r_c``, so it needs neither image resolution
   nor thin layers. The flux is deposited on a voxel mesh of spacing ``h`` aligned with the camera (the
@@ -19,14 +23,14 @@ so that ``f - cap_r[f]`` is zero from ``r`` on and ``cap_r[f]`` is C^1:
   nothing wraps around) and read back, with the weights of a quadratic B-spline (each point spread over the 3^3
   nodes around it, the triangular-shaped cloud of particle-mesh codes). The kernel's spectrum is divided by the
   transfer function of the deposit and the read-back (``sinc^6`` per axis), which removes their blur to second order.
-- **Middle band**: summed directly (through a cell list) at the corners of the voxels of side ``g`` that hold
-  clusters and that queries fall in, each corner once, when first needed, and read back trilinearly: it is smooth at
-  the scale ``r_1 > g``. (At a query in any other voxel, or among queries sparser than the voxels, it is summed
-  where the query is.)
-- **Core**: summed directly at each query point over the samples within ``r_1``.
+- **Middle bands**: band ``k`` summed directly (through a cell list) at the corners of the voxels of side
+  ``2^(k-1) g`` that hold clusters and that queries fall in, each corner once, when first needed, and read back
+  trilinearly: it is smooth at the scale ``r_{k-1} > 2^(k-1) g``. (At a query in any other voxel, or among queries
+  sparser than the voxels, it is summed where the query is.)
+- **Core**: summed directly at each query point over the samples within ``r_0``.
 
 Both direct sums run over *clusters*: the samples merged in cubes of side ``s`` for the core, those clusters merged
-again in cubes of side ``2 s`` for the smoother middle band (flux summed, placed at its centroid; the two sides of a
+again in cubes of side ``2^k s`` for the smoother band ``k`` (flux summed, placed at its centroid; the two sides of a
 thin sheet are kept apart by the normals' directions). The render's samples are many
 times denser than the profile's core is wide, so the sums lose almost nothing (the error is second order in ``s``
 and cancels where the irradiance is smooth) for a small fraction of the cost.
