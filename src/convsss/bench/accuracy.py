@@ -196,7 +196,8 @@ def bench_points(samples, points, profile, frame, cell_size, configs, runs=3, ba
             stages[k].append(_stages(transport))
             if run == 0:  # every run computes the same numbers
                 errors[k] = error_metrics(exitance[subset], reference)
-            last[k] = transport
+            last[k] = _facts(config, transport)  # not the transport: eighteen of them at 800² fill the memory
+            del transport
             if bar is not None:
                 bar.update()
     for k, config in enumerate(configs):
@@ -205,7 +206,19 @@ def bench_points(samples, points, profile, frame, cell_size, configs, runs=3, ba
     return rows
 
 
-def _row(scene, config, times, stages, errors, transport, n_points, n_samples):
+def _facts(config, transport):
+    """What a row reports of a configuration's transport beyond its times and errors (:func:`_row`)."""
+    if config["transport"] == "convolution":
+        return {"fft_shape": list(transport.padded_shape),
+                "pairs_per_layer": float(transport.pairs_per_layer.mean())}
+    if config["transport"] == "hierarchical":
+        return {"nodes_visited_per_query": float(transport.stats["nodes_visited_per_query"])}
+    if config["transport"] == "multiscale":
+        return {"scales_mm": transport.stats["scales_mm"], "clusters": transport.stats["clusters"]}
+    return {}
+
+
+def _row(scene, config, times, stages, errors, facts, n_points, n_samples):
     names = sorted({name for s in stages for name in s})
     row = {"scene": scene, "transport": config["transport"], "method": method(config), "label": label(config),
            "layers": config.get("layers"), "downsample": config.get("downsample"),
@@ -213,15 +226,7 @@ def _row(scene, config, times, stages, errors, transport, n_points, n_samples):
            "epsilon": config.get("epsilon"), "accuracy": config.get("accuracy"),
            "seconds": float(np.median(times)), "seconds_runs": [float(t) for t in times],
            "stage_median_s": {name: float(np.median([s.get(name, 0.0) for s in stages])) for name in names},
-           **errors, "points": int(n_points), "samples": int(n_samples)}
-    if config["transport"] == "convolution":
-        row["fft_shape"] = list(transport.padded_shape)
-        row["pairs_per_layer"] = float(transport.pairs_per_layer.mean())
-    if config["transport"] == "hierarchical":
-        row["nodes_visited_per_query"] = float(transport.stats["nodes_visited_per_query"])
-    if config["transport"] == "multiscale":
-        row["scales_mm"] = transport.stats["scales_mm"]
-        row["clusters"] = transport.stats["clusters"]
+           **errors, "points": int(n_points), "samples": int(n_samples), **(facts or {})}
     return row
 
 
