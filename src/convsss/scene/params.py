@@ -96,8 +96,9 @@ def render_parameters():
         Parameter("sample_density", float, 4.0, "Surface samples per layer cell: N = sample_density * area / cell^2 "
                   "over the whole surface.", low=0.0, low_open=True),
         Parameter("profile_samples", float, PROFILE_SAMPLES, "Surface samples per effective area of the object's "
-                  "diffusion profile, at least (A_eff = (∫R_d dA)^2 / ∫R_d^2 dA, smallest over the channels): "
-                  "N >= profile_samples * area / A_eff, whatever the pixel footprint, so that the noise the discrete "
+                  "diffusion profile, at least (A_eff = (∫R_d dA)^2 / ∫R_d^2 dA, smallest over the channels; for a "
+                  "profile narrower than the pixel footprint f, the multiscale transport's local limit, about "
+                  "1.75 f^2): N >= profile_samples * area / A_eff, so that the noise the discrete "
                   "samples leave in the exitance (more camera samples do not remove it) stays about 1 % (mean over "
                   "the object's pixels) at the default; it falls about as N^-0.7. 0: the pixel rule alone. Capped, "
                   "with a warning, by the memory and time limits.", low=0.0),
