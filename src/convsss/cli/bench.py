@@ -1,6 +1,7 @@
 """``convsss bench``: benchmarks that print tables (never part of the tests' pass/fail)."""
 
 import json
+from pathlib import Path
 
 import click
 
@@ -82,6 +83,48 @@ def bench_render_command(quick, runs, commands, scaling, as_json, progress):
     timed = bench_commands(runs=runs or 5, progress=progress) if (commands if commands is not None else not quick) \
         else {}
     click.echo(json.dumps({"rows": rows, "commands": timed}, indent=1) if as_json else render_table(rows, timed))
+
+
+@bench.command("volpath")
+@click.option("--scene", "scenes", multiple=True, type=click.Choice(["milk40", "marble40", "skin40", "ketchup40",
+                                                                      "milk40-area"]),
+              help="A scene (repeat for several) [default: all]: the 40 mm bunny in whole milk, marble, skin1 and "
+                   "ketchup under the key and back point lights (null boundary), and in whole milk behind a smooth "
+                   "dielectric under an area light and a dim environment (milk40-area).")
+@click.option("--width", "widths", multiple=True, type=click.IntRange(16, 4096),
+              help="Image width and height (square; repeat for several) [default: 128].")
+@click.option("--reference-spp", type=click.IntRange(1), default=1024, show_default=True,
+              help="Samples per pixel of the two references (seeds 1 and 2).")
+@click.option("--ladder", default="4,16,64,256", show_default=True,
+              help="Samples per pixel of the path tracer's runs, comma-separated, increasing.")
+@click.option("-o", "--output", "out_file", type=click.Path(dir_okay=False),
+              help="Also write the result as JSON to this file.")
+@click.option("--json", "as_json", is_flag=True, help="Print {meta, rows} as JSON instead of the table.")
+@PROGRESS
+def bench_volpath_command(scenes, widths, reference_spp, ladder, out_file, as_json, progress):
+    """Equal error against path tracing: the time volpathmis needs to reach a default convsss render's error.
+
+    Per scene and size, all as commands in fresh processes on one scene file: two references (convsss reference,
+    seeds 1 and 2; half their relative MSE is the reference's own noise), convsss render with its defaults, and
+    convsss reference at each spp of --ladder. Errors are the relative MSE over the object's pixels (convsss's mask
+    AOV), the reference's noise subtracted; volpathmis's time at convsss's error is interpolated on the ladder
+    (log-log; beyond its ends, slope -1). Prints per row the errors and seconds and the speed-up at equal error.
+    """
+    from ..bench.volpath import VOLPATH_SCENES, bench_volpath, volpath_table
+    from ..errors import ConvsssError
+
+    try:
+        spps = tuple(int(v) for v in ladder.split(","))
+    except ValueError:
+        raise ConvsssError(f"--ladder {ladder!r}: give whole numbers of samples per pixel, e.g. 4,16,64") from None
+    if len(spps) < 2 or any(v < 1 for v in spps) or list(spps) != sorted(set(spps)):
+        raise ConvsssError(f"--ladder {ladder!r}: give at least two increasing whole numbers >= 1")
+    result = bench_volpath(scenes or tuple(VOLPATH_SCENES), widths or (128,), reference_spp, spps, progress)
+    if out_file:
+        from ..files import atomic_write
+
+        atomic_write(out_file, lambda tmp: Path(tmp).write_text(json.dumps(result, indent=1)))
+    click.echo(json.dumps(result, indent=1) if as_json else volpath_table(result))
 
 
 @bench.command("accuracy")
