@@ -563,6 +563,21 @@ def _cell_list(view, origin, size, dims):
     return order, starts
 
 
+@numba.njit(inline="always")
+def _home_cube(point, origin, size):
+    """The cube of side ``size`` from ``origin`` that ``point`` (3,) falls in: ``(i, j, m)``."""
+    return (int(np.floor((point[0] - origin[0]) / size)), int(np.floor((point[1] - origin[1]) / size)),
+            int(np.floor((point[2] - origin[2]) / size)))
+
+
+@numba.njit(inline="always")
+def _column(i, j, cm, reach, dims, starts):
+    """The range of sorted clusters in the cubes ``(i, j, cm - reach .. cm + reach)`` of a :class:`CellList` (one
+    run: its cubes are in x-major order)."""
+    base = (i * dims[1] + j) * dims[2]
+    return starts[base + min(max(cm - reach, 0), dims[2])], starts[base + max(min(cm + reach + 1, dims[2]), 0)]
+
+
 @numba.njit(parallel=True, fastmath=True, cache=True)
 def _band_sum(view, position, flux, starts, origin, size, dims, reach, table, r_c2, out):
     """``out[k] += sum_{|x_k - x_j| < r} R(|x_k - x_j|) Phi_j`` over the clusters (sorted into cubes of side
@@ -570,16 +585,11 @@ def _band_sum(view, position, flux, starts, origin, size, dims, reach, table, r_
     scale = (table.shape[0] - 1) / r_c2
     for k in numba.prange(view.shape[0]):
         px, py, pz = view[k, 0], view[k, 1], view[k, 2]
-        ci = int(np.floor((px - origin[0]) / size))
-        cj = int(np.floor((py - origin[1]) / size))
-        cm = int(np.floor((pz - origin[2]) / size))
+        ci, cj, cm = _home_cube(view[k], origin, size)
         m0 = m1 = m2 = 0.0
         for i in range(max(ci - reach, 0), min(ci + reach + 1, dims[0])):
             for j in range(max(cj - reach, 0), min(cj + reach + 1, dims[1])):
-                base = (i * dims[1] + j) * dims[2]
-                first = starts[base + min(max(cm - reach, 0), dims[2])]
-                last = starts[base + max(min(cm + reach + 1, dims[2]), 0)]
-                for q in range(first, last):
+                for q in range(*_column(i, j, cm, reach, dims, starts)):
                     dx = position[q, 0] - px
                     dy = position[q, 1] - py
                     dz = position[q, 2] - pz
@@ -603,16 +613,11 @@ def _local_sum(view, position, flux, area, starts, origin, size, dims, reach, r_
     weights ``(1 - d^2 / r_0^2)^2``, ``sum w_j Phi_j / sum w_j A_j`` (sorted into cubes as for :func:`_band_sum`)."""
     for k in numba.prange(view.shape[0]):
         px, py, pz = view[k, 0], view[k, 1], view[k, 2]
-        ci = int(np.floor((px - origin[0]) / size))
-        cj = int(np.floor((py - origin[1]) / size))
-        cm = int(np.floor((pz - origin[2]) / size))
+        ci, cj, cm = _home_cube(view[k], origin, size)
         m0 = m1 = m2 = held = 0.0
         for i in range(max(ci - reach, 0), min(ci + reach + 1, dims[0])):
             for j in range(max(cj - reach, 0), min(cj + reach + 1, dims[1])):
-                base = (i * dims[1] + j) * dims[2]
-                first = starts[base + min(max(cm - reach, 0), dims[2])]
-                last = starts[base + max(min(cm + reach + 1, dims[2]), 0)]
-                for q in range(first, last):
+                for q in range(*_column(i, j, cm, reach, dims, starts)):
                     dx = position[q, 0] - px
                     dy = position[q, 1] - py
                     dz = position[q, 2] - pz
