@@ -129,6 +129,19 @@ def test_unknown_and_bad_parameters_fail_in_one_line(kind):
 
 
 @pytest.mark.parametrize("kind", KINDS)
+def test_the_sample_area_is_the_profile_s_unless_the_transport_sums_it_otherwise(kind):
+    """The plan sizes the samples by ``sample_area``: a positive area, the profile's own effective area where the
+    profile is resolved (a footprint much finer than its core), never smaller than it for a coarse footprint."""
+    cls = TRANSPORTS[kind]
+    skin = model_profile("dipole", material("skin1"))
+    own = float(np.min(skin.effective_area()))
+    fine = {"cell_size": 0.01} if cls.accepts("cell_size") else {}
+    coarse = {"cell_size": 5.0} if cls.accepts("cell_size") else {}
+    assert cls.sample_area(skin, fine) == pytest.approx(own)
+    assert cls.sample_area(skin, coarse) >= own > 0
+
+
+@pytest.mark.parametrize("kind", KINDS)
 def test_planned_bytes_are_known_before_the_samples_and_bound_what_is_built(kind):
     """A plan (:mod:`convsss.scene.plan`) asks a transport what it will hold from the samples' bounds alone, before any
     sample exists: a number >= 0, at least the structures the built transport holds (the multiscale far-field
