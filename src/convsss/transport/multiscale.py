@@ -833,7 +833,7 @@ class MultiscaleTransport(Transport):
                   "and voxel sizes, split radii and far-field mesh from the profile's core width.", low=0.0,
                   low_open=True, high=0.5),
         Parameter("cell_size", float, None, "The pixel footprint in mm where the object is seen (the renderer "
-                  "sets it): the profile's features narrower than half of it are summed as their energy over a "
+                  "sets it): the profile's features narrower than a third of it are summed as their energy over a "
                   "smooth kernel (the local limit), so that the work follows the image.", low=0.0, low_open=True,
                   exposed=False),
         Parameter("memory_limit", float, None, "Bytes the far-field mesh may use (default: what the machine has "
@@ -844,32 +844,27 @@ class MultiscaleTransport(Transport):
 
     @classmethod
     def _split(cls, profile, params, lo, hi):
-        """The :class:`Scales` under ``params`` for samples within ``lo``, ``hi`` (3,) of the view frame, and the
-        profile's split (:func:`split`): as few middle bands as keep the far mesh within :data:`FAR_CELLS` FFT cells
-        (or its field below :data:`FAR_SKIP`), one where it fits."""
+        """The :class:`Scales` under ``params`` for samples within ``lo``, ``hi`` (3,) of the view frame, the
+        profile's split (:func:`split`) and whether the far field is kept (it holds at least :data:`FAR_SKIP` of the
+        accuracy in some channel): as few middle bands as keep the far mesh within :data:`FAR_CELLS` FFT cells (or
+        drop its field), one where it fits."""
         accuracy, reach = params.get("accuracy", 0.01), far_reach(profile)
         for levels in range(1, MAX_LEVELS + 1):
             sc = scales(profile, accuracy, params.get("cell_size"), levels)
             parts = split(profile, sc.radii, sc.local)
-            if not cls._far_kept(profile, sc, parts[0], params):
+            kept = bool(np.max(far_energy(profile, sc.split, parts[0])) >= FAR_SKIP * accuracy)
+            if not kept or np.prod(np.asarray(far_mesh(sc, reach, lo, hi)[2], dtype=np.float64)) <= FAR_CELLS:
                 break
-            if np.prod(np.asarray(far_mesh(sc, reach, lo, hi)[2], dtype=np.float64)) <= FAR_CELLS:
-                break
-        return sc, parts
-
-    @classmethod
-    def _far_kept(cls, profile, sc, far, params):
-        """Whether the far field holds enough energy to be summed (:data:`FAR_SKIP`)."""
-        return bool(np.max(far_energy(profile, sc.split, far)) >= FAR_SKIP * params.get("accuracy", 0.01))
+        return sc, parts, kept
 
     @classmethod
     def planned_bytes(cls, bounds, profile, count, params):
         """The far-field mesh's spectra and the cell lists' offsets (:func:`far_mesh`, :class:`CellList`)."""
         lo, hi = bounds
-        sc, (far, _, _) = cls._split(profile, params, lo, hi)
+        sc, _, kept = cls._split(profile, params, lo, hi)
         held = cell_list_bytes(lo, hi, sc.core)
         held += sum(cell_list_bytes(lo, hi, 0.5 * sc.band(k)[0]) for k in range(1, sc.levels + 1))
-        if cls._far_kept(profile, sc, far, params):
+        if kept:
             held += far_bytes(far_mesh(sc, far_reach(profile), lo, hi)[2])
         return int(held)
 
@@ -889,9 +884,9 @@ class MultiscaleTransport(Transport):
             self._view = self._to_view(samples.position)
             self._lo, self._hi = bounds(self._view)
         with self.timings("kernels"):
-            self.scales, (self._far_cap, self._core, self._band_tables) = self._split(profile, self.params,
-                                                                                      self._lo, self._hi)
-            sc = self.scales
+            sc, (self._far_cap, self._core, self._band_tables), self._far_kept = self._split(profile, self.params,
+                                                                                             self._lo, self._hi)
+            self.scales = sc
         with self.timings("clusters"):
             side = sheet_side(None if samples.normal is None else self._to_view(samples.normal, vectors=True))
             self._fine = group(cube_cells(self._view, self._lo, sc.cluster), side)
@@ -927,7 +922,7 @@ class MultiscaleTransport(Transport):
         ones read its border); float32 throughout (the error aimed at is far above its round-off).
         """
         self._field = None
-        if not self._far_kept(self.profile, self.scales, self._far_cap, self.params):
+        if not self._far_kept:
             self._mesh_origin, self.fft_shape = lo, None
             return
         h = self.scales.mesh
