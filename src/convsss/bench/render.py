@@ -30,6 +30,8 @@ SPPS = (1, 4, 16)
 STAGES = ("samples", "irradiance", "indirect", "transport", "screen", "shading")
 #: The demo's object.
 DEMO = {"material": "wholemilk", "size_mm": 40.0}
+#: ``convsss`` as a command line in a fresh process, in this interpreter.
+CONVSSS = [sys.executable, "-c", "from convsss.cli import main; main()"]
 #: The scaling benchmark's image widths (the demo) and object spans in mean free paths (the bunny at 256²).
 SCALING_WIDTHS = (64, 128, 256, 512, 800, 1600)
 SCALING_SPANS = (10, 100, 1000, 10000)
@@ -99,7 +101,7 @@ def bench_render(resolutions=RESOLUTIONS, spps=SPPS, runs=5, progress=True):
 
 def bench_commands(runs=5, progress=True):
     """Wall seconds (median of ``runs``, each in a fresh process) of whole command lines: ``{name: seconds}``."""
-    command = [sys.executable, "-c", "from convsss.cli import main; main()"]
+    command = CONVSSS
     demo = ["render", "--mesh", "bunny", "--material", DEMO["material"], "--size-mm", f"{DEMO['size_mm']:g}",
             "--floor", "--spp", "1", "--no-progress"]
     with tempfile.TemporaryDirectory() as folder:
@@ -125,18 +127,17 @@ def _command(args, folder):
     import json
     import os
 
-    stats = Path(folder) / "stats.json"
+    stats, log = Path(folder) / "stats.json", Path(folder) / "stderr.txt"
+    line = [*CONVSSS, *args, "--no-progress", "--stats", str(stats), "-o", str(Path(folder) / "image")]
     start = time.perf_counter()
-    child = subprocess.Popen([sys.executable, "-c", "from convsss.cli import main; main()", *args, "--no-progress",
-                              "--stats", str(stats), "-o", str(Path(folder) / "image")],
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(child.pid, 0)
+    with open(log, "wb") as stderr:  # a file, not a pipe: a full pipe would block the child before wait4 returns
+        child = subprocess.Popen(line, stdout=subprocess.DEVNULL, stderr=stderr)
+        _, status, usage = os.wait4(child.pid, 0)
     seconds = time.perf_counter() - start
-    child.returncode = os.waitstatus_to_exitcode(status)
-    error = child.stderr.read().decode(errors="replace").strip().splitlines()
-    child.stderr.close()
-    if child.returncode:
-        raise RuntimeError(f"convsss {' '.join(args)} failed: {error[-1] if error else child.returncode}")
+    code = os.waitstatus_to_exitcode(status)
+    if code:
+        error = log.read_text(errors="replace").strip().splitlines()
+        raise RuntimeError(f"convsss {' '.join(args)} failed: {error[-1] if error else code}")
     return seconds, usage.ru_maxrss * 1024, json.loads(stats.read_text())
 
 

@@ -20,7 +20,6 @@ import math
 import os
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -28,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from .render import CONVSSS
 from .scenes import BenchScene
 
 #: The benchmark's scenes: the demo's object in four materials under the two point lights (null boundary: a point
@@ -48,7 +48,7 @@ LADDER = (4, 16, 64, 256)
 def _run(args):
     """Wall seconds of ``convsss ARGS`` in a fresh process (one-line error on failure)."""
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-c", "from convsss.cli import main; main()", *args, "--no-progress"],
+    done = subprocess.run([*CONVSSS, *args, "--no-progress"],
                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     if done.returncode:
         lines = done.stderr.strip().splitlines()
