@@ -68,37 +68,44 @@ def test_object_and_mask_mark_the_sphere_not_the_floor(floor_render, object_mask
 def test_exitance_is_what_the_sphere_pixels_are_made_of(mi, sphere_scene, monkeypatch, screen):
     """Index-matched boundary (F_t = 1, no reflection), ``incidence`` normal: every camera sample on the sphere has
     radiance M / pi (paper Eq. 7), so over fully covered pixels pi * RGB equals the exitance AOV, M read from the
-    screen table or, with the table disabled, from the transport itself."""
+    screen table or, with the table disabled, from the transport itself. A 10 mm sphere of whole milk, seen where
+    the view cosine is over 0.4: the light crossing it (Eq. S3) is below e^-20 there (chords over 8 mm)."""
     from convsss.scene.screen import ScreenExitance
 
     if not screen:
         monkeypatch.setattr(ScreenExitance, "_projection_agrees", lambda *args: False)
-    scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=2, integrator={
-        "aovs": "exitance,mask", "incidence": "normal", "single_scattering": "profile"}))
+    sphere = {"material": "wholemilk", "radius": 10.0, "floor": True, "res": 32, "spp": 2}
+    scene, image = _render(mi, sphere_scene(**sphere, integrator={
+        "aovs": "exitance,mask,normal", "incidence": "normal", "single_scattering": "profile"}))
     assert scene.integrator().stats["screen_exitance"]["usable"] == screen
-    aov = _layers(image, ["exitance.R", "exitance.G", "exitance.B", "mask.Y"])
-    covered = aov["mask.Y"] == 1.0
+    aov = _layers(image, ["exitance.R", "exitance.G", "exitance.B", "mask.Y", "normal.X", "normal.Y", "normal.Z"])
+    normal = np.stack([aov[f"normal.{c}"] for c in "XYZ"], axis=-1)
+    eye = np.array([0.0, 20.0, 80.0])  # sphere_scene's camera (radius 10 at the origin)
+    cos = (normal * (eye - 10.0 * normal)).sum(axis=-1) / np.linalg.norm(eye - 10.0 * normal, axis=-1)
+    covered = (aov["mask.Y"] == 1.0) & (cos > 0.4)
     exitance = np.stack([aov[f"exitance.{c}"] for c in "RGB"], axis=-1)
     assert covered.sum() > 100 and np.all(exitance[covered] > 0)
     np.testing.assert_allclose(np.pi * image[covered][:, :3], exitance[covered], rtol=1e-5)
     np.testing.assert_array_equal(exitance[aov["mask.Y"] == 0], 0.0)
-    plain, _ = _render(mi, sphere_scene(floor=True, res=32, spp=2))  # the AOV asked the transports nothing more
+    plain, _ = _render(mi, sphere_scene(**sphere))  # the AOV asked the transports nothing more
     assert scene.integrator().stats["exitance_lookups"] == plain.integrator().stats["exitance_lookups"]
 
 
 def test_oblique_exit_weights_the_exitance_by_the_view_cosines_gain(mi, sphere_scene):
     """``incidence`` oblique: a camera sample on the index-matched sphere has radiance ``M g(mu_o) / (pi k)`` (Eq. O4),
-    ``mu_o`` its view cosine: over covered pixels away from the rim, pi RGB / M is that of the pixel's normal."""
+    ``mu_o`` its view cosine: over covered pixels away from the rim, pi RGB / M is that of the pixel's normal. The
+    sphere is 10 mm in radius, so that light crossing it (Eq. S3) is under 0.2 % of ``M`` where the view cosine is over
+    0.4 (chords over 8 mm)."""
     from convsss.profiles.incidence import exit_normalization, gain
 
     names = ["exitance.R", "exitance.G", "exitance.B", "mask.Y", "normal.X", "normal.Y", "normal.Z"]
-    scene, image = _render(mi, sphere_scene(floor=True, res=32, spp=2, integrator={
+    scene, image = _render(mi, sphere_scene(radius=10.0, floor=True, res=32, spp=2, integrator={
         "aovs": "exitance,mask,normal", "single_scattering": "profile"}))  # the radiance is M's alone
     aov = _layers(image, names)
     exitance = np.stack([aov[f"exitance.{c}"] for c in "RGB"], axis=-1)
     normal = np.stack([aov[f"normal.{c}"] for c in "XYZ"], axis=-1)
-    eye = np.array([0.0, 4.0, 16.0])  # sphere_scene's camera (radius 2 at the origin)
-    cos = (normal * (eye - 2.0 * normal)).sum(axis=-1) / np.linalg.norm(eye - 2.0 * normal, axis=-1)
+    eye = np.array([0.0, 20.0, 80.0])  # sphere_scene's camera (radius 10 at the origin)
+    cos = (normal * (eye - 10.0 * normal)).sum(axis=-1) / np.linalg.norm(eye - 10.0 * normal, axis=-1)
     covered = (aov["mask.Y"] == 1.0) & (cos > 0.4)
     assert covered.sum() > 100
     albedo = convsss.material("skin1").albedo_prime

@@ -31,7 +31,17 @@ is found by the ray towards the emitter, which then does not first leave the obj
 a half-space it is the once-scattered part of Eq. O2, ``alpha' E / (4 pi (mu + mu_0))`` when index-matched. The
 single scattering of light that arrives after a bounce stays in the profile (:class:`.irradiance.Entry`).
 
-Light that refracts into the object is otherwise in ``M``, so a path ends there. Every **other** shape is shaded by
+Light that crosses the object without scattering is neither: on an index-matched or thin part, a low-albedo
+medium, or under an environment seen through the body, it is most of what arrives. A path that reaches a closed
+translucent object continues through it, unscattered,
+
+    L_0 = F_t(eta, w_o) e^{-sigma_t' l} L_behind,                                                           (Eq. S3)
+
+``l`` the chord its transmitted direction cuts through the object and ``L_behind`` what the path finds beyond the far
+side, where the boundary's BSDF (seen from inside) refracts it out or reflects it back in; the crossing is chosen
+against the reflection lobe by the light's odds of getting through (:meth:`Shader._bounce`), nothing is scattered or
+lit inside, and with ``sigma_t'`` as in Eq. S2 (the similarity relation, exact for isotropic media). Scattered light
+that refracts into the object is otherwise in ``M``, so a path ends there. Every **other** shape is shaded by
 an ordinary unidirectional path tracer: emitter sampling and BSDF sampling combined by the power heuristic, Russian
 roulette from ``rr_depth``, so floors, shadows and backgrounds look as in Mitsuba's ``path``. A bounce that reaches
 a translucent object picks up its ``L_sss`` too.
@@ -51,6 +61,8 @@ weight, which :meth:`Shader.incident` returns beside the radiance, to be looked 
 (:meth:`Shader.resolve`).
 """
 
+import math
+
 import drjit as dr
 import numpy as np
 
@@ -64,6 +76,11 @@ from .objects import hit_indices
 mi = load_mitsuba()
 
 MAX_EMITTERS_SUMMED = 8
+#: A path crosses a translucent object (Eq. S3) with the boundary's transmittance as probability where the chord
+#: transmits at least this fraction of the light in some channel; below, by Russian roulette on the transmittance.
+THROUGH_ROULETTE = 0.1
+#: Light that a chord dims below this fraction in every channel is not followed through the object (Eq. S3).
+CROSSING_FLOOR = 1e-3
 #: Room for recorded hits (those the screen table does not know), per path; more take a second, identical trace.
 RECORD_ROOM = 1.0
 
@@ -125,6 +142,8 @@ class Shader:
         self.ctx = mi.BSDFContext()
         self.ctx_reflect = mi.BSDFContext()
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
+        self.ctx_transmit = mi.BSDFContext()
+        self.ctx_transmit.type_mask = int(mi.BSDFFlags.Transmission)
         self.lookups = 0
         #: During :meth:`incident`, its hits on objects without a transport: ``(object, tag, points_mm, normals,
         #: faces, weight)`` per batch (returned by it; None otherwise).
@@ -382,15 +401,21 @@ class Shader:
         valid = dr.zeros(mi.Bool, n_lanes)
         depth = dr.full(mi.UInt32, first_depth, n_lanes)
         active = dr.full(mi.Bool, True, n_lanes)
+        inside = dr.full(mi.Int32, -1, n_lanes)  # the translucent object a ballistic ray crosses (Eq. S3), or -1
         while active:
             si = scene.ray_intersect(ray, active)
             valid = dr.select(depth == first_depth, si.is_valid(), valid)
+            interior = active & (inside >= 0)
+            # A ray crossing an object arrives at its far side unscattered: e^{-sigma_t' l} (Eq. S3).
+            throughput = dr.select(interior, throughput * dr.exp(-self._extinction(inside) * si.t), throughput)
             # Emission seen here (not on the first hit of a path that starts on a surface: that is direct light).
             seen = active & ((depth > first_depth) | (depth == 0))
             contribution = dr.select(seen, self._emission(si, prev_p, prev_n, prev_pdf, prev_delta) * throughput,
                                      0.0)
             alive = active & si.is_valid() & (depth + 1 < max_depth)
             which, eta = self.classify(si)
+            leaving = alive & interior & (which == inside)  # the far side, seen from inside: no M, no light sampled
+            alive &= ~interior
             translucent = alive & (which >= 0)
             weight = throughput * self._leaving(which, eta, si.wi.z)  # times M: paper Eq. 7 (or O4)
             known, sss = self._screen_exitance(si, which, translucent, weight)
@@ -404,9 +429,10 @@ class Shader:
 
             bsdf = si.bsdf(ray)
             u_light = sampler.next_2d(alive)
-            u_lobe = sampler.next_1d(alive)
-            u_dir = sampler.next_2d(alive)
-            u_rr = sampler.next_1d(alive)
+            u_lobe = sampler.next_1d(alive | leaving)
+            u_dir = sampler.next_2d(alive | leaving)
+            u_rr = sampler.next_1d(alive | leaving)
+            u_through = sampler.next_1d(translucent)
 
             # Direct light by emitter sampling.
             opaque = alive & (which < 0)
@@ -419,7 +445,8 @@ class Shader:
                 u_emitter = sampler.next_2d(translucent)
                 contribution += throughput * self._single(si, which, eta, u_distance, u_emitter, translucent)
 
-            bs, bsdf_weight, continues = self._bounce(si, bsdf, u_lobe, u_dir, opaque, translucent)
+            bs, bsdf_weight, continues, entering, exiting = self._bounce(si, bsdf, which, eta, u_lobe, u_dir, u_through,
+                                                                         opaque, translucent, leaving)
             throughput = throughput * dr.select(continues, bsdf_weight, 0.0)
             continues &= (bs.pdf > 0) & (dr.max(throughput) > 0)
             roulette = continues & (depth + 1 >= params.rr_depth)
@@ -433,7 +460,9 @@ class Shader:
             prev_p = mi.Point3f(si.p)
             prev_n = mi.Vector3f(si.n)
             prev_pdf = mi.Float(bs.pdf)
-            prev_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+            # Emission after a crossing has full weight: no light is sampled inside an object or on its far side.
+            prev_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta) | leaving
+            inside = dr.select(entering, which, dr.select(exiting, -1, inside))
             active = continues
             depth += 1
         dr.eval(total, valid, count)
@@ -447,14 +476,61 @@ class Shader:
         known &= translucent
         return known, dr.select(known, weight * exitance, 0.0)
 
-    def _bounce(self, si, bsdf, u_lobe, u_dir, opaque, translucent):
-        """The next direction by BSDF sampling (translucent objects: their reflection lobe only, in ``bsdf`` mode):
-        ``(sample, weight, continues)``."""
-        bs, weight = bsdf.sample(self.ctx, si, u_lobe, u_dir, opaque)
-        if self.params.specular != "bsdf":
-            return bs, weight, mi.Bool(opaque)
-        bs_r, weight_r = bsdf.sample(self.ctx_reflect, si, u_lobe, u_dir, translucent)
-        return dr.select(translucent, bs_r, bs), dr.select(translucent, weight_r, weight), opaque | translucent
+    def _bounce(self, si, bsdf, which, eta, u_lobe, u_dir, u_through, opaque, translucent, leaving):
+        """The next direction: ``(sample, weight, continues, entering, exiting)``.
+
+        Opaque shapes sample their BSDF. On a translucent object's outside the path crosses the object unscattered
+        (Eq. S3) with probability ``p = F_t(eta, mu) min(1, T / THROUGH_ROULETTE)``, ``T`` the largest channel of
+        ``e^{-sigma_t' l}`` along the chord the transmitted direction cuts through it, weight ``f / (pdf p)`` (the
+        chord's own ``e^{-sigma_t' l}`` is applied where the ray arrives); else, in ``bsdf`` mode, it takes the
+        reflection lobe, weight ``f / (pdf (1 - p))``. Chords longer than :meth:`_reach` are not followed. On the
+        far side seen from inside (``leaving``) the boundary's whole BSDF chooses between leaving and reflecting back
+        in."""
+        bs, weight = bsdf.sample(self.ctx, si, u_lobe, u_dir, opaque | leaving)
+        continues = opaque | leaving
+        exiting = leaving & (bs.wo.z * si.wi.z < 0)
+        bs_t, weight_t = bsdf.sample(self.ctx_transmit, si, u_lobe, u_dir, translucent)
+        ray = si.spawn_ray(si.to_world(bs_t.wo))
+        ray.maxt = self._reach(which)
+        chord = self.scene.ray_intersect(ray, translucent & (bs_t.pdf > 0))
+        crosses = translucent & (bs_t.pdf > 0) & self._closed(which) & (self.classify(chord)[0] == which)
+        transmittance = dr.max(dr.exp(-self._extinction(which) * chord.t))
+        p_through = dr.select(crosses, fresnel_transmittance(eta, si.wi.z)
+                              * dr.minimum(transmittance / THROUGH_ROULETTE, 1.0), 0.0)
+        entering = translucent & (u_through < p_through)
+        bs = dr.select(entering, bs_t, bs)
+        weight = dr.select(entering, weight_t / p_through, weight)
+        continues |= entering
+        if self.params.specular == "bsdf":
+            reflect = translucent & ~entering
+            bs_r, weight_r = bsdf.sample(self.ctx_reflect, si, u_lobe, u_dir, reflect)
+            bs = dr.select(reflect, bs_r, bs)
+            weight = dr.select(reflect, weight_r / (1.0 - p_through), weight)
+            continues |= reflect
+        return bs, weight, continues, entering, exiting
+
+    def _closed(self, which):
+        """Per lane, whether ``which`` is a translucent object known to bound a volume (a ray can cross it)."""
+        out = dr.zeros(mi.Bool, dr.width(which))
+        for k, obj in enumerate(self.objects):
+            if obj.closed:
+                out |= which == k
+        return out
+
+    def _reach(self, which):
+        """Per lane, the longest chord through object ``which`` that transmits ``CROSSING_FLOOR`` of the light in its
+        clearest channel (scene units; 0 where none)."""
+        out = dr.zeros(mi.Float, dr.width(which))
+        for k, (extinction, _) in enumerate(self.coefficients):
+            out = dr.select(which == k, -math.log(CROSSING_FLOOR) / dr.min(extinction), out)
+        return out
+
+    def _extinction(self, which):
+        """Per lane, ``sigma_t'`` (per scene unit) of the translucent object ``which`` (0 where none)."""
+        out = dr.zeros(mi.Color3f, dr.width(which))
+        for k, (extinction, _) in enumerate(self.coefficients):
+            out = dr.select(which == k, extinction, out)
+        return out
 
     def _recorded(self, total, records, count):
         """Adds to ``total`` the recorded hits' ``weight M`` from each object's transport (numpy, positions in mm,
