@@ -7,33 +7,16 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import convsss
+from convsss.bench.lights import EMITTERS, emitter_dict, write_envmap
 from convsss.scene.materials import BOUNDARIES, translucent
 from convsss.scene.params import SPECULARS, RenderParams, available_transports
 from convsss.transport.convolution import DOWNSAMPLES, SPLATS
 
 
-def _emitters(mi, tmp_path_factory):
-    """One scene entry per Mitsuba emitter type, each lighting a sphere of radius 1 at the origin."""
-    T = mi.ScalarTransform4f
-    envmap = tmp_path_factory.mktemp("env") / "sky.exr"
-    mi.Bitmap(np.full((8, 16, 3), 0.5, dtype=np.float32)).write(str(envmap))
-    return {
-        "point": {"type": "point", "position": [2, 3, 2], "intensity": {"type": "rgb", "value": [20.0] * 3}},
-        "spot": {"type": "spot", "to_world": T().look_at(origin=[2, 3, 2], target=[0, 0, 0], up=[0, 1, 0]),
-                 "intensity": {"type": "rgb", "value": [20.0] * 3}, "cutoff_angle": 40.0},
-        "directional": {"type": "directional", "direction": [-1, -1, -0.5], "irradiance": {"type": "rgb",
-                                                                                          "value": [2.0] * 3}},
-        "constant": {"type": "constant", "radiance": {"type": "rgb", "value": [0.5] * 3}},
-        "envmap": {"type": "envmap", "filename": str(envmap)},
-        "area": {"type": "rectangle", "to_world": T().look_at(origin=[0, 4, 0], target=[0, 0, 0], up=[0, 0, 1]),
-                 "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [5.0] * 3}}},
-    }
-
-
 @pytest.fixture(scope="module")
 def tiny(mi, tmp_path_factory):
     """``tiny(emitter, boundary, integrator)``: a 1 mm wholemilk sphere, 16x16 pixels, 1 spp, box filter."""
-    emitters = _emitters(mi, tmp_path_factory)
+    envmap = write_envmap(tmp_path_factory.mktemp("env") / "sky.exr")
     T = mi.ScalarTransform4f
 
     def make(emitter="point", boundary="null", integrator=None, material="wholemilk"):
@@ -46,7 +29,7 @@ def tiny(mi, tmp_path_factory):
                        "sampler": {"type": "independent", "sample_count": 1}},
             "object": translucent({"type": "sphere"}, convsss.material(material), boundary=boundary),
             "floor": {"type": "rectangle", "to_world": T().translate([0, -1, 0]).rotate([1, 0, 0], -90).scale(10)},
-            "light": emitters[emitter],
+            "light": emitter_dict(emitter, 1.0, envmap),
         })
 
     return make
@@ -57,7 +40,6 @@ def _render(scene):
     return image[..., :3]
 
 
-EMITTERS = ("point", "spot", "directional", "constant", "envmap", "area")
 
 
 @pytest.mark.slow

@@ -1,6 +1,8 @@
 import numpy as np
 import pytest
 
+from convsss.scene.reference import reference_integrator
+
 
 @pytest.mark.slow
 def test_opaque_shapes_get_mitsubas_direct_light(mi, sphere_scene, object_mask):
@@ -138,7 +140,7 @@ def test_light_through_a_dielectric_absorber_matches_volpathmis(mi, object_mask)
     within 0.5 %), convsss at 256 spp was measured within 0.65 % per channel over three seeds."""
     scene = _absorbing_sphere(mi, "dielectric", spp=256)
     mask = object_mask(scene)
-    volpath = mi.load_dict({"type": "volpathmis"})
+    volpath = reference_integrator()
     references = [np.array(mi.render(scene, integrator=volpath, seed=seed, spp=1024), dtype=np.float64)[..., :3][mask]
                   .mean(axis=0) for seed in (2, 3)]
     noise = np.abs(references[0] / references[1] - 1.0)
@@ -159,7 +161,7 @@ def test_environment_light_into_a_low_albedo_medium_matches_volpathmis(mi, spher
                                           emitters={"environment": {"type": "constant", "radiance": 1.0}}))
         mask = object_mask(scene)
         ours = np.array(mi.render(scene, seed=1), dtype=np.float64)[..., 1:3][mask].mean(axis=0)
-        volpath = mi.load_dict({"type": "volpathmis"})
+        volpath = reference_integrator()
         references = [np.array(mi.render(scene, integrator=volpath, seed=seed, spp=1024), dtype=np.float64)[..., 1:3]
                       [mask].mean(axis=0) for seed in (2, 3)]
         noise = np.abs(references[0] / references[1] - 1.0)

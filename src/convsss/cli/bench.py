@@ -127,6 +127,42 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, out_file, as_js
     click.echo(json.dumps(result, indent=1) if as_json else volpath_table(result))
 
 
+@bench.command("lights")
+@click.option("--material", "materials", multiple=True, type=click.Choice(["ketchup", "skin1", "potato", "marble"]),
+              help="A medium (repeat for several) [default: all]: low (ketchup), middle (skin1) and high albedo "
+                   "(potato, marble).")
+@click.option("--emitter", "emitters", multiple=True,
+              type=click.Choice(["point", "spot", "directional", "area", "constant", "envmap"]),
+              help="A Mitsuba emitter type (repeat for several) [default: all]; behind a dielectric only area, "
+                   "constant and envmap (a path tracer cannot reach the others through it).")
+@click.option("--boundary", "boundaries", multiple=True, type=click.Choice(["null", "dielectric"]),
+              help="The sphere's boundary (repeat for both) [default: both].")
+@click.option("--radius-mm", type=click.FloatRange(0, min_open=True), default=100.0, show_default=True,
+              help="The sphere's radius in mm.")
+@click.option("--width", type=click.IntRange(8, 1024), default=32, show_default=True,
+              help="Image width and height (square).")
+@click.option("--spp", type=click.IntRange(1), default=64, show_default=True,
+              help="convsss's samples per pixel, for each of its two seeds.")
+@click.option("--reference-spp", type=click.IntRange(1), default=256, show_default=True,
+              help="volpathmis's samples per pixel, for each of its two seeds.")
+@click.option("--json", "as_json", is_flag=True, help="Print the rows as JSON instead of the table.")
+@PROGRESS
+def bench_lights_command(materials, emitters, boundaries, radius_mm, width, spp, reference_spp, as_json, progress):
+    """Each light alone: convsss against volpathmis on a sphere, per medium, emitter type and boundary.
+
+    Per case, the ratio per channel of convsss's mean over the sphere's pixels to volpathmis's, each the mean of two
+    seeds (whose difference is its noise), all rendered in this process. Prints a Markdown table.
+    """
+    from tqdm import tqdm
+
+    from ..bench.lights import BOUNDARIES, EMITTERS, MATERIALS, bench_lights, cases, lights_table
+
+    chosen = (materials or MATERIALS, emitters or EMITTERS, boundaries or BOUNDARIES)
+    with tqdm(total=len(cases(*chosen)), desc="bench lights", unit="case", disable=not progress) as bar:
+        rows = bench_lights(*chosen, bar=bar, radius=radius_mm, resolution=width, spp=spp, reference_spp=reference_spp)
+    click.echo(json.dumps([row.__dict__ for row in rows], indent=1) if as_json else lights_table(rows))
+
+
 @bench.command("accuracy")
 @click.option("--quick", is_flag=True,
               help="A tiny run: 96² image, the 4 mm and 40 mm bunnies, multiscale accuracy 0.01 and 0.1, layers 4 "
