@@ -10,7 +10,7 @@ from convsss.cli import cli
 
 #: How far a channel's mean may be from path tracing's beyond both renders' noise: the issue's goal. Measured at
 #: the test's settings (200 mm spheres, 24², convsss 2 x 32 spp, volpathmis 2 x 256 spp; `convsss bench lights`
-#: prints the table on the benchmark page at 32², 2 x 64 spp): every case within it.
+#: prints the table on the benchmark page at 32², 2 x 64 spp): every asserted case within it.
 TOLERANCE = 0.05
 
 
