@@ -86,6 +86,35 @@ def pass_seed(seed, k):
     return int.from_bytes(hashlib.blake2b(f"{seed}:{k}".encode(), digest_size=4).digest(), "little")
 
 
+def _digest(params):
+    """A digest of a Mitsuba object's traversed parameters (``mi.traverse``): their names and values."""
+    digest = hashlib.blake2b(digest_size=16)
+    for name in sorted(params.keys()):
+        value = params[name]
+        value = value.matrix if isinstance(value, (mi.Transform4f, mi.AffineTransform4f)) else value
+        try:
+            array = np.asarray(value)
+        except (TypeError, ValueError, RuntimeError):
+            array = None
+        data = repr(value).encode() if array is None or array.dtype == object else array.tobytes()
+        digest.update(name.encode() + b"=" + data + b";")
+    return digest.hexdigest()
+
+
+def scene_fingerprint(scene, sensor):
+    """``(world, crop)``: digests of every traversable parameter of the scene's shapes (with their BSDFs and media),
+    its emitters and ``sensor``, and of the sensor's crop window alone: what a kept render state must still match
+    (:meth:`ConvsssIntegrator.prepare`). A few milliseconds for a 70 k-triangle scene."""
+    crop_keys = ("film.crop_size", "film.crop_offset")
+    camera = mi.traverse(sensor)
+    crop = tuple(tuple(np.asarray(camera[k]).reshape(-1).tolist()) for k in crop_keys if k in camera)
+    world = [_digest(mi.traverse(s)) for s in scene.shapes()] + [_digest(mi.traverse(e)) for e in scene.emitters()]
+    for key in crop_keys:
+        if key in camera:
+            camera.keep([k for k in camera.keys() if k != key])
+    return hashlib.blake2b("".join(world + [_digest(camera)]).encode(), digest_size=16).hexdigest(), crop
+
+
 @dataclass(eq=False)
 class PreparedState:
     """What :meth:`ConvsssIntegrator.prepare` built for one sensor, kept so that :meth:`ConvsssIntegrator.retransport`
@@ -95,7 +124,9 @@ class PreparedState:
     points, the pixel footprint at its depth (mm); ``lighting`` their samples and irradiance (:class:`~.lighting.
     Lighting`: the samples with their direct irradiance, direct + indirect without the light of translucent objects,
     the indirect paths' hits on translucent objects), ``transports`` theirs; ``survey`` what
-    :meth:`ConvsssIntegrator._survey` found (all objects, the frame, what each pixel centre sees, the plan).
+    :meth:`ConvsssIntegrator._survey` found (all objects, the frame, what each pixel centre sees, the plan);
+    ``params`` the parameters it was built with (``RenderParams.to_dict()``) and ``fingerprint`` the scene's and the
+    crop window's :func:`scene_fingerprint` then, so that a later render knows what of it still holds.
     """
 
     scene: object
@@ -108,6 +139,8 @@ class PreparedState:
     lighting: object
     transports: list = field(default_factory=list)
     survey: tuple = None
+    params: dict = None
+    fingerprint: tuple = None
 
     @property
     def samples(self):
@@ -141,9 +174,11 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     ``indirect``, ``transport``, ``screen``, ``shading``), ``parameters``, ``objects`` (per object: material, sample
     count, cell size, flux direct / indirect / from translucent objects, size in mean free paths), ``transports``
     (each transport's own statistics), ``samples``, ``hidden``, ``film``, ``screen_exitance``, ``exitance_lookups``
-    and ``translucent_passes``. :meth:`prepare` runs stages 1-3 alone (objects, samples, transports; kept in
-    :attr:`prepared`, a :class:`PreparedState`), :meth:`render_prepared` shades them, :meth:`retransport` rebuilds the
-    transports; a convolution transport's :meth:`~convsss.transport.convolution.ConvolutionTransport.layer_image`
+    and ``translucent_passes``, ``reused`` the stages a render of a prepared scene skipped. :meth:`prepare` runs
+    stages 1-3 alone (objects, samples, transports; kept in :attr:`prepared`, a :class:`PreparedState`, until
+    :meth:`release`, and reused by later renders where they still hold), :meth:`render_prepared` shades them,
+    :meth:`retransport` rebuilds the transports; a convolution transport's
+    :meth:`~convsss.transport.convolution.ConvolutionTransport.layer_image`
     shows one layer's exitance ``M_l``.
     """
 
@@ -163,8 +198,10 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         self._shader = None
         self._aovs = None
         self._nested = False
+        self._keep = False
         self._threads = 1
-        #: The :class:`PreparedState` of the last :meth:`prepare` (kept until :meth:`render` is done with it).
+        #: The :class:`PreparedState` of the last :meth:`prepare` (a render's own is dropped when it is done with it;
+        #: one :meth:`prepare` made is kept, and renders reuse it, until :meth:`release`).
         self.prepared = None
 
     def to_string(self):
@@ -212,10 +249,26 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         return objects, frame, seen, plan_samples(scene, sensor, frame, objects, seen, p)
 
     @_one_at_a_time
-    def prepare(self, scene, sensor, seed=0, survey=None):
-        """Stages 1–3 for ``sensor``: translucent objects, their irradiance samples and transports. ``survey``: a
-        :meth:`_survey` of the same scene, sensor and parameters to reuse (the passes of one render share it)."""
+    def prepare(self, scene, sensor, seed=0):
+        """Stages 1–3 for ``sensor``: translucent objects, their irradiance samples and transports, kept (in
+        :attr:`prepared`) until :meth:`release`. A later ``mi.render`` of the same scene and sensor reuses what still
+        holds: all but the shading for another ``spp`` (same seed), the survey for another seed, the samples and
+        transports for another crop window that sees the same objects (same seed); a changed scene parameter, camera
+        or integrator parameter prepares again. The state holds the scene: :meth:`release` lets both go."""
+        if isinstance(sensor, int):
+            sensor = scene.sensors()[sensor]
+        self._keep = True
+        return self._prepare(scene, sensor, seed)
+
+    def release(self):
+        """Drop what :meth:`prepare` kept: renders start from nothing again, and the scene can be freed."""
+        self.prepared, self._shader, self._aovs, self._keep = None, None, None, False
+
+    def _prepare(self, scene, sensor, seed=0, survey=None):
+        """:meth:`prepare`'s stages; ``survey``: a :meth:`_survey` of the same scene, sensor and parameters to reuse
+        (the passes of one render share it)."""
         p = self.params
+        fingerprint = scene_fingerprint(scene, sensor)
         timer = StageTimer(sync=dr.sync_thread)
 
         def stage(name):
@@ -248,7 +301,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                       "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
         self.prepared = PreparedState(scene, sensor, _seed(seed), frame, shown, shown_at, cells, lighting, transports,
-                                      survey=(objects, frame, seen, plan))
+                                      survey=(objects, frame, seen, plan), params=p.to_dict(), fingerprint=fingerprint)
         return self._shader
 
     @_one_at_a_time
@@ -307,7 +360,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             screen = ScreenExitance(state.sensor, objects, state.visible, transports, p.unit_mm)
         self._shader = Shader(state.scene, objects, transports, p, stop=self.should_stop, screen=screen)
         self._aovs = FirstHitAOVs(self._shader, parse_aovs(p.aovs))
-        state.objects, state.transports = objects, transports
+        state.objects, state.transports, state.params = objects, transports, p.to_dict()
         for summary, obj in zip(self.stats.get("objects", []), objects):
             summary.update(obj.summary())
         self.stats.update(parameters=p.to_dict(), seconds=dict(timer), translucent_passes=passes,
@@ -355,14 +408,60 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         check_film(size[0], size[1], per_pass, len(self.aov_names()))
         if self.params.passes > 1 and not develop:
             raise ConvsssError("passes > 1 needs develop=True: the passes' images are averaged")
+        kept = (self.prepared, self._shader, self._aovs) if self._keep else None
         try:
             if self.params.passes > 1:
                 return self._render_passes(scene, sensor, _seed(seed), spp_used)
-            self.prepare(scene, sensor, seed)
-            return self.render_prepared(spp=spp, seed=seed, develop=develop, evaluate=evaluate)
-        finally:  # the samples and transports are not kept past a render (render_prepared keeps them)
-            self._shader = None
-            self.prepared = None
+            reused = self._reuse(scene, sensor, _seed(seed))
+            image = self.render_prepared(spp=spp, seed=seed, develop=develop, evaluate=evaluate)
+            self.stats["reused"] = reused
+            return image
+        finally:  # a render keeps its samples and transports only for a prepared scene (prepare, render_prepared)
+            if not self._keep:
+                self._shader = None
+                self.prepared = None
+            elif self.params.passes > 1:  # the passes' states were their shares'
+                self.prepared, self._shader, self._aovs = kept
+
+    def _reuse(self, scene, sensor, seed):
+        """Make the prepared state the one a render of ``scene``, ``sensor`` and ``seed`` needs, from what
+        :meth:`prepare` kept that still holds; returns the stages reused (:meth:`prepare`'s doc).
+
+        The same scene (every traversable parameter of its shapes, emitters and sensor: :func:`scene_fingerprint`),
+        parameters and seed keep all but the shading. Another crop window draws the survey again (what each pixel
+        centre sees) and, where the plan is the same (the same objects seen; the cells follow the film and the
+        objects' depth, not the crop), keeps the samples and transports: the samples cover each object's whole
+        surface. Another seed keeps the survey alone."""
+        state = self.prepared
+        fingerprint = scene_fingerprint(scene, sensor)
+        same = (state is not None and self._keep and state.scene is scene and state.sensor is sensor
+                and state.params == self.params.to_dict() and state.fingerprint[0] == fingerprint[0])
+        if not same:
+            self._prepare(scene, sensor, seed)
+            return []
+        if state.fingerprint[1] == fingerprint[1]:
+            if state.seed == seed:
+                self.stats["seconds"] = {}
+                return ["samples", "irradiance", "indirect", "transport", "screen"]
+            self._prepare(scene, sensor, seed, survey=state.survey)
+            return ["survey"]
+        timer = StageTimer(sync=dr.sync_thread)
+        with timer("samples"):
+            survey = self._survey(scene, sensor)
+        if state.seed != seed or not survey[3].draws_like(state.survey[3]):
+            self._prepare(scene, sensor, seed, survey=survey)
+            self.stats["seconds"]["samples"] += timer["samples"]
+            return []
+        objects, _, seen, plan = survey
+        state.visible = [seen[q.index] for q in plan.objects]
+        with timer("screen"):
+            screen = ScreenExitance(sensor, state.objects, state.visible, state.transports, self.params.unit_mm)
+        self._shader = Shader(scene, state.objects, state.transports, self.params, stop=self.should_stop,
+                              screen=screen)
+        self._aovs = FirstHitAOVs(self._shader, parse_aovs(self.params.aovs))
+        state.survey, state.fingerprint = survey, fingerprint
+        self.stats.update(seconds=dict(timer), screen_exitance={"usable": screen.usable, "queries": screen.queries})
+        return ["irradiance", "indirect", "transport"]
 
     def _render_passes(self, scene, sensor, seed, spp):
         """:meth:`render` in ``passes`` passes: each prepares fresh samples (its share of ``sample_density`` and
@@ -380,7 +479,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             for k, share in enumerate(shares):
                 self._stage(f"pass {k + 1}/{count}")
                 pass_start, own_seed = time.perf_counter(), pass_seed(seed, k)
-                self.prepare(scene, sensor, own_seed, survey)
+                self._prepare(scene, sensor, own_seed, survey)
                 survey = self.prepared.survey
                 shaded = self.render_prepared(spp=share, seed=own_seed)
                 image = shaded * share if image is None else image + shaded * share
@@ -437,7 +536,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     def sample(self, scene, sampler, ray, medium=None, active=True):
         if self._shader is None or self._shader.scene is not scene:
             # Called by another integrator's loop (e.g. Mitsuba's `aov`) without our render(): first sensor.
-            self.prepare(scene, scene.sensors()[0], 0)
+            self._prepare(scene, scene.sensors()[0], 0)
         if self._nested:  # all threads for the shading, then one again for Mitsuba's film kernel (see render)
             dr.set_thread_count(self._threads)
         radiance, valid = self._shader.shade(sampler, ray)

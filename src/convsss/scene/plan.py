@@ -100,6 +100,19 @@ class SamplingPlan:
     objects: tuple
     hidden: tuple
 
+    def draws_like(self, other, rtol=1e-4):
+        """Whether ``other`` draws what this plan draws: the same objects seen and hidden, the same sample counts,
+        cells and bounds within ``rtol`` (a crop window of the same film measures the same pixel footprint, to the
+        rounding of its rays)."""
+        def close(a, b):
+            return np.allclose(a, b, rtol=rtol, atol=0.0)
+
+        return self.hidden == other.hidden and len(self.objects) == len(other.objects) and all(
+            (a.index, a.samples) == (b.index, b.samples) and close(a.bounds_mm, b.bounds_mm)
+            and close([a.pixel_footprint_mm, a.cell_size_mm, a.view_depth_mm],
+                      [b.pixel_footprint_mm, b.cell_size_mm, b.view_depth_mm])
+            for a, b in zip(self.objects, other.objects))
+
 
 def film_bytes(width, height, samples_per_pass, aov_channels=0):
     """Bytes the shading of ``width x height`` pixels at ``samples_per_pass`` holds (``BYTES_PER_PATH`` a path, and
