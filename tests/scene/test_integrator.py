@@ -423,6 +423,10 @@ def test_passes_average_renders_of_fresh_samples_each_with_its_share(mi, sphere_
     singles = [_render(mi, sphere_scene(integrator=share, res=24, spp=2), seed=s)[1] for s in seeds]
     np.testing.assert_allclose(image, np.mean(singles, axis=0), rtol=1e-5, atol=1e-7)
     assert stats["samples"] == sum(p["samples"] for p in stats["passes"])
+    # the same scene again: Mitsuba's render set the sampler to each pass's share; the passes leave it at 8
+    assert scene.sensors()[0].sampler().sample_count() == 8
+    again = np.array(scene.integrator().render(scene, scene.sensors()[0], seed=3))
+    assert [p["spp"] for p in scene.integrator().stats["passes"]] == [2, 2, 2, 2] and np.array_equal(again, image)
 
 
 @pytest.mark.slow

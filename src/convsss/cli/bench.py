@@ -85,6 +85,40 @@ def bench_render_command(quick, runs, commands, scaling, as_json, progress):
     click.echo(json.dumps({"rows": rows, "commands": timed}, indent=1) if as_json else render_table(rows, timed))
 
 
+@bench.command("noise")
+@click.option("--width", type=click.IntRange(16, 4096), default=128, show_default=True,
+              help="Image width and height (square).")
+@click.option("--spp", type=click.IntRange(1), default=4, show_default=True,
+              help="Samples per pixel of each pass (a render of k passes has k times as many).")
+@click.option("--passes", "passes", default="1,2,4,8", show_default=True,
+              help="Pass counts, comma-separated, increasing.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the rows as JSON: passes, spp, samples, pixels, seconds, median, p95, rms, "
+                   "median_sqrt_passes.")
+@PROGRESS
+def bench_noise_command(width, spp, passes, as_json, progress):
+    """The image's sample noise against passes: it should fall as 1/sqrt(passes).
+
+    The demo scene (40 mm whole-milk bunny, dielectric, floor, two lights), rendered in k passes of a default
+    render's budget each (sample density, profile samples and --spp times k), twice with different seeds. Per object
+    pixel and channel, the noise is |a - b| / sqrt(2) relative to the pair's mean; printed are its median, 95th
+    percentile and root mean square over the object and the median x sqrt(k), constant where the noise falls as it
+    should. At --passes 1
+    and the demo's size (--width 800 --spp 16), the demo's own noise.
+    """
+    from ..bench.noise import bench_noise, noise_table
+    from ..errors import ConvsssError
+
+    try:
+        counts = tuple(int(v) for v in passes.split(","))
+    except ValueError:
+        raise ConvsssError(f"--passes {passes!r}: give whole numbers of passes, e.g. 1,2,4") from None
+    if not counts or any(v < 1 for v in counts) or list(counts) != sorted(set(counts)):
+        raise ConvsssError(f"--passes {passes!r}: give increasing whole numbers >= 1")
+    rows = bench_noise(width, spp, counts, progress)
+    click.echo(json.dumps(rows, indent=1) if as_json else noise_table(rows, width))
+
+
 @bench.command("volpath")
 @click.option("--scene", "scenes", multiple=True, type=click.Choice(["milk40", "marble40", "skin40", "ketchup40",
                                                                       "milk40-area"]),

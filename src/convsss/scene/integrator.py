@@ -492,6 +492,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                     break
         finally:
             self.params = p
+            # Mitsuba's render sets the sampler's count to each pass's share: leave it as a one-pass render would
+            sensor.sampler().set_sample_count(spp)
         spp_done = sum(d["spp"] for d in done)
         self.stats.update(parameters=p.to_dict(), seconds=seconds, passes=done,
                           samples=sum(d["samples"] for d in done))
