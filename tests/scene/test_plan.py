@@ -1,6 +1,8 @@
 """The sampling plan (:mod:`convsss.scene.plan`): counts and budgets decided from what is known before any sample is
 drawn, and refusals that come before any work (issue 30: a dense material was refused after 22.8 M samples)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -77,3 +79,18 @@ def test_the_plan_is_what_the_render_draws(mi):
     assert built <= plan.transport_bytes <= 1.3 * built + 2**20
     view = state.frame.to_view(state.samples[0].position)
     assert np.all(plan.bounds_mm[0] <= view.min(axis=0) + 1e-6) and np.all(view.max(axis=0) <= plan.bounds_mm[1] + 1e-6)
+
+
+def test_plans_draw_alike_within_the_rounding_of_a_crop_windows_rays():
+    from convsss.scene.plan import ObjectPlan, SamplingPlan
+
+    bounds = np.array([[-1.0, -1.0, 10.0], [1.0, 1.0, 12.0]])
+    one = ObjectPlan(0, 0.65, 0.65, 155.0, 1377741, 1000, 1377741, 2.0, bounds, 10)
+    plan = SamplingPlan((one,), ())
+    rounded = dataclasses.replace(one, samples=1377742, pixel_footprint_mm=0.65 * (1 + 1.5e-6))
+    assert plan.draws_like(SamplingPlan((rounded,), ()))
+    for other in (dataclasses.replace(one, samples=1300000), dataclasses.replace(one, index=1),
+                  dataclasses.replace(one, bounds_mm=bounds * 1.01), dataclasses.replace(one, view_depth_mm=160.0)):
+        assert not plan.draws_like(SamplingPlan((other,), ()))
+    assert not plan.draws_like(SamplingPlan((one,), ("hidden",)))
+    assert not plan.draws_like(SamplingPlan((), ()))

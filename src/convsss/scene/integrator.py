@@ -430,8 +430,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         The same scene (every traversable parameter of its shapes, emitters and sensor: :func:`scene_fingerprint`),
         parameters and seed keep all but the shading. Another crop window draws the survey again (what each pixel
         centre sees) and, where the plan is the same (the same objects seen; the cells follow the film and the
-        objects' depth, not the crop), keeps the samples and transports: the samples cover each object's whole
-        surface. Another seed keeps the survey alone."""
+        objects' depth, not the crop: :meth:`~.plan.SamplingPlan.draws_like`), keeps the samples and transports: the
+        samples cover each object's whole surface. Another seed keeps the survey alone."""
         state = self.prepared
         fingerprint = scene_fingerprint(scene, sensor)
         same = (state is not None and self._keep and state.scene is scene and state.sensor is sensor

@@ -101,16 +101,16 @@ class SamplingPlan:
     hidden: tuple
 
     def draws_like(self, other, rtol=1e-4):
-        """Whether ``other`` draws what this plan draws: the same objects seen and hidden, the same sample counts,
-        cells and bounds within ``rtol`` (a crop window of the same film measures the same pixel footprint, to the
-        rounding of its rays)."""
+        """Whether ``other`` draws what this plan draws: the same objects seen and hidden, their sample counts,
+        cells and bounds within ``rtol``. A crop window of the same film measures the same pixel footprint up to
+        the float32 rounding of its rays (about 1e-6), which can move a count by one sample."""
         def close(a, b):
             return np.allclose(a, b, rtol=rtol, atol=0.0)
 
         return self.hidden == other.hidden and len(self.objects) == len(other.objects) and all(
-            (a.index, a.samples) == (b.index, b.samples) and close(a.bounds_mm, b.bounds_mm)
-            and close([a.pixel_footprint_mm, a.cell_size_mm, a.view_depth_mm],
-                      [b.pixel_footprint_mm, b.cell_size_mm, b.view_depth_mm])
+            a.index == b.index and close(a.bounds_mm, b.bounds_mm)
+            and close([a.samples, a.pixel_footprint_mm, a.cell_size_mm, a.view_depth_mm],
+                      [b.samples, b.pixel_footprint_mm, b.cell_size_mm, b.view_depth_mm])
             for a, b in zip(self.objects, other.objects))
 
 
