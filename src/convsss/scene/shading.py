@@ -387,9 +387,10 @@ class Shader:
         n_lanes = dr.width(ray.o)
         max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         count = dr.zeros(mi.UInt32, 1)
-        records = (dr.zeros(mi.Int32, room), dr.zeros(mi.Point3f, room), dr.zeros(mi.Vector3f, room),
-                   dr.zeros(mi.Color3f, room), dr.zeros(mi.UInt32, room), dr.zeros(mi.Bool, room),
-                   dr.zeros(mi.UInt32, room))
+        # Uninitialized: only the first ``count`` are written and read, so the rest is never touched (zeroing room
+        # for every lane cost 0.6 s at 800² 16 spp).
+        records = tuple(dr.empty(t, room) for t in (mi.Int32, mi.Point3f, mi.Vector3f, mi.Color3f, mi.UInt32,
+                                                     mi.Bool, mi.UInt32))
         lane = dr.arange(mi.UInt32, n_lanes)
         ray = mi.Ray3f(ray)
         total = dr.zeros(mi.Color3f, n_lanes)
@@ -539,12 +540,13 @@ class Shader:
         the hits that were the first of a camera ray."""
         if count == 0:
             return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
-        owner, points, normals, beta, lanes, first, faces = (dr.ravel(r).numpy() if i in (1, 2, 3) else r.numpy()
-                                                             for i, r in enumerate(records))
+        written = dr.arange(mi.UInt32, count)
+        owner, points, normals, beta, lanes, first, faces = (dr.gather(type(r), r, written).numpy().T
+                                                             for r in records)
         # The loop's threads record in any order; a path records its own hits in order: sorted by lane, the
         # transports are asked the same points in the same order whatever the threads (and neighbouring pixels' hits
         # together).
-        order = np.argsort(lanes[:count], kind="stable")
+        order = np.argsort(lanes, kind="stable")
         owner, lanes, first, faces = owner[order], lanes[order], first[order], faces[order]
         points = points.reshape(-1, 3)[order].astype(np.float64) * self.params.unit_mm
         normals = normals.reshape(-1, 3)[order].astype(np.float64)
