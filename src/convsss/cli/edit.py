@@ -18,7 +18,7 @@ from .options import integrator_options, load_source, pick_sensor, render_params
               help="Open the page in the default browser.")
 @integrator_options
 def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height, spp,
-         sensor, seed, target, port, open_browser, **integrator):
+         sensor, light_scale, orbit_deg, seed, target, port, open_browser, **integrator):
     """Edit one translucent object's material in a web page served on 127.0.0.1: the render, a preset picker,
     sliders for colour and mean free path, sigma_s' and sigma_a per channel, eta (dielectric boundaries), the
     multiscale transport's accuracy, the profile model, the profile's plot and per-stage seconds.
@@ -44,7 +44,7 @@ def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, f
 
     load_mitsuba()
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width or 256, height or 256, color,
-                        mfp_mm, eta, color_model)
+                        mfp_mm, eta, color_model, light_scale=light_scale, orbit_deg=orbit_deg)
     base = scene_parameters(scene) or defaults
     camera = pick_sensor(scene, sensor)
     server = EditorServer(None, "127.0.0.1", port)  # the port is taken (or refused) before the first render

@@ -148,6 +148,12 @@ def scene_source_options(func=None, *, preview=False):
         click.option("--sensor", type=click.IntRange(0), default=None,
                      help="Which of the scene's sensors to render, from 0 (default: the first; a note names the "
                           "others)."),
+        click.option("--light-scale", type=click.FloatRange(0), default=1.0, show_default=True,
+                     help="Multiply every light's power by this (the scene's emitters, or --mesh's key and back "
+                          "light): the image scales by it."),
+        click.option("--orbit-deg", type=float, default=0.0, show_default=True,
+                     help="Turn the camera by this many degrees about the vertical (+y) axis through the translucent "
+                          "objects' centre: a turntable's frame."),
         click.option("--seed", type=SEED, default=0, show_default=True,
                      help="Random seed, 0 to 2^32 - 1: the same seed gives the same image (render: bit for bit, "
                           "whatever the thread count; reference: up to Mitsuba's float rounding, about 1e-7 "
@@ -217,19 +223,39 @@ def exposure_anchor(exposure_from, tonemap):
 
 
 def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color=None, mfp_mm=None,
-                eta=None, color_model=None):
-    """The loaded scene for the scene-source options; one-line errors for bad combinations."""
-    from ..scene.loading import load_scene
+                eta=None, color_model=None, light_scale=1.0, orbit_deg=0.0):
+    """The loaded scene for the scene-source options, its lights scaled by ``light_scale`` and its cameras orbited
+    by ``orbit_deg`` (:mod:`convsss.scene.variations`); one-line errors for bad combinations."""
+    from ..scene.variations import orbit_camera, scale_lights
 
+    scene = _load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
+                         color_model)
+    return orbit_camera(scale_lights(scene, light_scale), orbit_deg)
+
+
+def check_source(scene_file, mesh, material, size_mm, boundary, color=None, mfp_mm=None, eta=None,
+                 color_model=None):
+    """One-line errors for scene-source options that name nothing to render or two things at once; the quick
+    scene's material (None with a scene file). Nothing is loaded."""
     colored = any(x is not None for x in (color, mfp_mm, eta, color_model))
     if scene_file and (mesh or material or colored or size_mm is not None):
         raise ConvsssError("give a scene file or --mesh/--material (or --color/--mfp-mm)/--size-mm, not both")
     if scene_file:
-        return load_scene(scene_file, width, height)
+        return None
     made = source_material(material, color, mfp_mm, eta, color_model, boundary)
     if not (mesh and made is not None and size_mm is not None):
         raise ConvsssError("nothing to render: give a scene file, or all of --mesh, --material (or --color and "
                            "--mfp-mm) and --size-mm")
+    return made
+
+
+def _load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
+                 color_model):
+    from ..scene.loading import load_scene
+
+    made = check_source(scene_file, mesh, material, size_mm, boundary, color, mfp_mm, eta, color_model)
+    if scene_file:
+        return load_scene(scene_file, width, height)
     from ..scene.quick import demo_mesh, quick_scene
 
     mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)

@@ -35,7 +35,8 @@ from .options import (
 @tonemap_options
 @PROGRESS
 def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height,
-              spp, sensor, seed, output, pass_spp, strict, tonemap, key, exposure, exposure_from, progress):
+              spp, sensor, light_scale, orbit_deg, seed, output, pass_spp, strict, tonemap, key, exposure,
+              exposure_from, progress):
     """Render SCENE_FILE with Mitsuba's volumetric path tracer volpathmis: the ground truth of `convsss render`.
 
     Russian roulette is off and paths are unbounded. --spp is the total (default: the scene's sampler), rendered in
@@ -62,7 +63,7 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
     check_outputs([exr, png, info], [*source_inputs(scene_file, mesh), *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
-                        color_model)
+                        color_model, light_scale=light_scale, orbit_deg=orbit_deg)
     camera = pick_sensor(scene, sensor)
     total_spp = spp if spp is not None else (16 if scene_file is None else camera.sampler().sample_count())
     lines = progress and not sys.stderr.isatty()  # a log: one line a pass, no carriage returns

@@ -100,7 +100,8 @@ class StageProgress:
                    "count, and the object's size in mean free paths and diffusion lengths.")
 @PROGRESS
 def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height, spp,
-           sensor, seed, output, write_mask, tonemap, key, exposure, exposure_from, stats_path, progress, **integrator):
+           sensor, light_scale, orbit_deg, seed, output, write_mask, tonemap, key, exposure, exposure_from, stats_path,
+           progress, **integrator):
     """Render SCENE_FILE (a Mitsuba 3 XML scene) with the convsss integrator, whatever integrator the file names.
 
     A translucent object is a shape with an interior 'homogeneous' medium (or a 'convsss_medium' naming a preset
@@ -146,7 +147,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         bar("scene_load")
         t = time.perf_counter()
         scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
-                            color_model)
+                            color_model, light_scale=light_scale, orbit_deg=orbit_deg)
         base = scene_parameters(scene) or dict(defaults)
         params = render_params(integrator, base)
         if color is not None:
@@ -171,7 +172,8 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
                  "quick": {"mesh": str(mesh), "material": material, "color": color, "mfp_mm": mfp_mm, "eta": eta,
                            "color_model": color_model, "size_mm": size_mm, "floor": floor,
                            "boundary": boundary} if quick else None,
-                 "seed": seed, "spp": spp_used, "sensor": scene.sensors().index(camera),
+                 "seed": seed, "spp": spp_used, "sensor": scene.sensors().index(camera), "light_scale": light_scale,
+                 "orbit_deg": orbit_deg,
                  "outputs": {"exr": str(exr), "png": str(png), "mask": str(mask_png) if write_mask else None},
                  "aovs": aovs,
                  "tonemap": {"method": tonemap, "key": key, "exposure": exposure, "exposure_from": exposure_from},

@@ -1,0 +1,172 @@
+"""The batch runner: every job of a :class:`~.spec.Batch` on Dask distributed, with a manifest kept current.
+
+Each job is one ``convsss render`` (or ``reference``) in a Dask worker process, with its own folder
+``OUT/jobs/ID/`` (``image.exr``, ``image.png``, with ``render`` ``stats.json``) and, written last, ``job.json``: what
+says the job is complete (a second run skips it). A worker that dies (killed, out of memory) has its job run again
+elsewhere, up to ``retries`` times (Dask's ``allowed-failures``); a job that fails (bad input found by the command)
+is marked failed with its message. ``OUT/manifest.json`` and ``manifest.csv`` are rewritten whole after every job.
+
+By default the jobs run on a :class:`distributed.LocalCluster` of worker processes (one thread each, the machine's
+memory shared out); ``scheduler`` submits to a running cluster instead (``tcp://HOST:PORT``), whose workers must have
+convsss and the scenes' files at the same paths.
+"""
+
+import contextlib
+import csv
+import io
+import json
+import os
+import time
+from pathlib import Path
+
+from ..errors import ConvsssError
+from ..files import atomic_write
+from .spec import arguments
+
+#: A job's complete marker, written last in its folder.
+DONE = "job.json"
+
+
+def job_folder(out, job):
+    return Path(out) / "jobs" / job.id
+
+
+def run_job(command, job_id, args, folder):
+    """Run one job in this process: ``convsss COMMAND ARGS -o FOLDER/image`` (with ``--stats`` for ``render``);
+    returns its record (``seconds``: the command's stages and ``total``; ``outputs``), also written to
+    ``FOLDER/job.json``. Bad input raises the command's :class:`ConvsssError`."""
+    from ..cli.main import cli
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    stem = folder / "image"
+    extra = ["--stats", str(folder / "stats.json")] if command == "render" else []
+    start = time.perf_counter()
+    with contextlib.redirect_stdout(io.StringIO()):  # its "wrote ..." line: the manifest says it
+        cli.get_command(None, command).main(args=[*args, "-o", str(stem), *extra, "--no-progress"],
+                                            prog_name=f"convsss {command}", standalone_mode=False)
+    seconds = {}
+    if command == "render":
+        seconds.update(json.loads((folder / "stats.json").read_text()).get("seconds", {}))
+    seconds["total"] = time.perf_counter() - start
+    record = {"id": job_id, "status": "done", "seconds": seconds, "worker_pid": os.getpid(),
+              "outputs": {"exr": str(stem.with_suffix(".exr")), "png": str(stem.with_suffix(".png")),
+                          **({"stats": str(folder / "stats.json")} if command == "render" else {})}}
+    atomic_write(folder / DONE, lambda tmp: Path(tmp).write_text(json.dumps(record, indent=1)))
+    return record
+
+
+def completed(out, job):
+    """The record of ``job`` when its folder holds a complete run (``job.json`` and every output it names)."""
+    marker = job_folder(out, job) / DONE
+    if not marker.is_file():
+        return None
+    record = json.loads(marker.read_text())
+    return record if all(Path(p).is_file() for p in record.get("outputs", {}).values()) else None
+
+
+def write_manifest(out, batch, records):
+    """``OUT/manifest.json`` (``{"command", "jobs": [...]}``, a job's parameters beside its record) and
+    ``OUT/manifest.csv`` (one row a job: id, status, every option, total seconds, error), each written whole."""
+    rows = []
+    for job in batch.jobs:
+        record = records.get(job.id, {"status": "pending"})
+        rows.append({"id": job.id, "parameters": job.options, "varied": job.varied,
+                     **{k: v for k, v in record.items() if k != "id"}})
+    out = Path(out)
+    atomic_write(out / "manifest.json", lambda tmp: Path(tmp).write_text(
+        json.dumps({"command": batch.command, "jobs": rows}, indent=1, default=str)))
+    names = sorted({k for job in batch.jobs for k in job.options})
+    text = io.StringIO()
+    writer = csv.writer(text)
+    writer.writerow(["id", "status", *names, "seconds", "error"])
+    for row in rows:
+        writer.writerow([row["id"], row["status"], *(row["parameters"].get(k, "") for k in names),
+                         f"{row.get('seconds', {}).get('total', '')}", row.get("error", "")])
+    atomic_write(out / "manifest.csv", lambda tmp: Path(tmp).write_text(text.getvalue()))
+
+
+def _cluster(scheduler, workers, retries):
+    """A Dask client: to ``scheduler``, or to a new local cluster of ``workers`` processes (one thread each)."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    dask.config.set({"distributed.scheduler.allowed-failures": retries,
+                     "distributed.worker.daemon": False, "distributed.admin.tick.limit": "1h"})
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="10s"), None
+        except OSError as error:
+            raise ConvsssError(f"no Dask scheduler answers at {scheduler}: {error}") from None
+    workers = workers or os.cpu_count() or 1
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                           silence_logs=40)
+    return Client(cluster), cluster
+
+
+def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=run_job, echo=print,
+              progress=True):
+    """Run ``batch``'s jobs that ``out`` does not hold complete yet; returns ``{job id: record}``.
+
+    ``job_function(command, job_id, args, folder)`` runs one job in a worker (:func:`run_job`; a test may give its
+    own). Ctrl-C cancels what is left and writes the manifest of what finished before it re-raises."""
+    from distributed import as_completed
+    from tqdm import tqdm
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    records = {}
+    for job in batch.jobs:
+        done = completed(out, job)
+        if done is not None:
+            records[job.id] = {**done, "status": "done", "skipped": True}
+    todo = [job for job in batch.jobs if job.id not in records]
+    write_manifest(out, batch, records)
+    if not todo:
+        echo(f"batch: all {len(batch.jobs)} jobs complete in {out}; nothing to run")
+        return records
+    client, cluster = _cluster(scheduler, workers, retries)
+    bar = tqdm(total=len(todo), desc="batch", unit="job", disable=not progress)
+    futures = {}
+    try:
+        if client.dashboard_link:
+            echo(f"batch: {len(todo)} jobs ({len(batch.jobs) - len(todo)} complete already); Dask dashboard "
+                 f"{client.dashboard_link}")
+        for job in todo:
+            future = client.submit(job_function, batch.command, job.id, arguments(batch.command, job.options),
+                                   str(job_folder(out, job)), key=f"convsss-{job.id}-{time.time_ns()}", pure=False)
+            futures[future] = job
+            records[job.id] = {"status": "queued"}
+        for future in as_completed(futures):
+            job = futures[future]
+            records[job.id] = _outcome(future, retries)
+            bar.update()
+            write_manifest(out, batch, records)
+    except KeyboardInterrupt:
+        for future, job in futures.items():
+            if not future.done():
+                future.cancel()
+                records[job.id] = {"status": "cancelled"}
+        write_manifest(out, batch, records)
+        raise
+    finally:
+        bar.close()
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return records
+
+
+def _outcome(future, retries):
+    """A finished future's record: its result, or ``failed`` with the reason."""
+    from distributed import KilledWorker
+
+    try:
+        return future.result()
+    except KilledWorker:
+        return {"status": "failed", "error": f"its worker died on every try ({retries} allowed; killed or out of "
+                                             "memory)"}
+    except ConvsssError as error:
+        return {"status": "failed", "error": str(error)}
+    except Exception as error:  # the command's own failure, reported in its manifest row
+        return {"status": "failed", "error": f"{type(error).__name__}: {error}"}
