@@ -1,6 +1,7 @@
 """``convsss batch``: every job of a SPEC rendered on Dask distributed, resumable, with a manifest and a contact
 sheet (:mod:`convsss.batch`)."""
 
+import shlex
 from pathlib import Path
 
 import click
@@ -63,7 +64,7 @@ def batch(spec, out, workers, scheduler, retries, max_jobs, dry_run, progress):
         raise click.exceptions.Exit(2) from None
     if dry_run:
         for job in plan.jobs:
-            click.echo(f"{job.id}: convsss {plan.command} {' '.join(_shown(plan, job))}")
+            click.echo(f"{job.id}: convsss {plan.command} {shlex.join(_shown(plan, job))}")
         click.echo(f"{len(plan.jobs)} jobs")
         return
     records = run_batch(plan, out, scheduler, workers, retries, echo=lambda text: click.echo(text, err=True),
