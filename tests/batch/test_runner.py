@@ -99,3 +99,37 @@ def test_the_example_sweep_runs(tmp_path):
                                                                        "turntable-material=wholemilk.png"]
     images = [read_image(p) for p in sorted(tmp_path.glob("jobs/*/image.exr"))]
     assert len(images) == 4 and all(img.shape == (64, 64, 3) and img.mean() > 0 for img in images)
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_the_workers_and_leaves_the_manifest_of_what_finished(tmp_path):
+    import signal
+    import subprocess
+    import time
+
+    spec = tmp_path / "many.toml"
+    spec.write_text('[scene]\nmesh = "bunny"\nmaterial = "skin1"\nsize_mm = 20\nwidth = 48\nheight = 48\nspp = 2\n'
+                    '[axes]\nseed = [1, 2, 3, 4, 5, 6, 7, 8]\n')
+    out = tmp_path / "out"
+    child = subprocess.Popen([sys.executable, "-c", "from convsss.cli import main; main()", "batch", str(spec), "-o",
+                              str(out), "--workers", "1", "--no-progress"], start_new_session=True,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    manifest = out / "manifest.json"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:  # until a job is done
+        if manifest.is_file() and '"status": "done"' in manifest.read_text():
+            break
+        time.sleep(0.2)
+    os.killpg(child.pid, signal.SIGINT)  # a terminal's Ctrl-C reaches the whole process group
+    start = time.monotonic()
+    _, stderr = child.communicate(timeout=60)
+    assert child.returncode == 130 and "interrupted" in stderr
+    assert time.monotonic() - start < 20
+    statuses = [job["status"] for job in json.loads(manifest.read_text())["jobs"]]
+    # what finished, read back from the jobs' folders once the workers stopped (a job may end as the batch stops)
+    assert "done" in statuses and set(statuses) <= {"done", "cancelled"} and statuses.count("done") < 8
+    again = subprocess.run([sys.executable, "-c", "from convsss.cli import main; main()", "batch", str(spec), "-o",
+                            str(out), "--workers", "1", "--no-progress"], capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0 and "8 of 8 jobs done" in again.stdout  # resumed
+    done = json.loads(manifest.read_text())["jobs"]
+    assert sum(bool(job.get("skipped")) for job in done) == statuses.count("done")

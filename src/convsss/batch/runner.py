@@ -36,7 +36,9 @@ def run_job(command, job_id, args, folder):
     returns its record (``seconds``: the command's stages and ``total``; ``outputs``), also written to
     ``FOLDER/job.json``. Bad input raises the command's :class:`ConvsssError`."""
     from ..cli.main import cli
+    from ..memory import set_budget
 
+    set_budget(_worker_memory())  # a job that would not fit its worker's share is refused, not killed
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     stem = folder / "image"
@@ -54,6 +56,17 @@ def run_job(command, job_id, args, folder):
                           **({"stats": str(folder / "stats.json")} if command == "render" else {})}}
     atomic_write(folder / DONE, lambda tmp: Path(tmp).write_text(json.dumps(record, indent=1)))
     return record
+
+
+def _worker_memory():
+    """The Dask worker's memory limit in bytes, when this runs in one that has a limit; else None."""
+    try:
+        from distributed import get_worker
+
+        limit = get_worker().memory_manager.memory_limit
+    except (ImportError, ValueError, AttributeError):
+        return None
+    return int(limit) if limit else None
 
 
 def completed(out, job):
@@ -147,13 +160,16 @@ def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=
             if not future.done():
                 future.cancel()
                 records[job.id] = {"status": "cancelled"}
-        write_manifest(out, batch, records)
         raise
     finally:
         bar.close()
         client.close()
         if cluster is not None:
             cluster.close()
+        for job in todo:  # a job a worker finished while the batch stopped is complete on disk
+            if records.get(job.id, {}).get("status") != "done" and completed(out, job) is not None:
+                records[job.id] = completed(out, job)
+        write_manifest(out, batch, records)
     return records
 
 
