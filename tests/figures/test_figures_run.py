@@ -105,3 +105,21 @@ def test_second_run_reuses_the_cached_references(quick_run):
     panels = {p["panel"]: p for p in data["figures"][0]["panels"]}
     assert panels["exact"]["cached"] and panels["volpathmis"]["cached"]
     assert f"{2 + len(PROFILE_COLUMNS)} reused from `cache/`, 0 rendered" in (out / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_references_rendered_on_a_cluster_are_what_the_run_reads_from_the_cache(tmp_path):
+    """convsss figures --workers: the references on a two-worker Dask cluster first; the run then misses none."""
+    import dataclasses
+
+    from convsss.figures import QUICK
+    from convsss.figures.run import Runner, prefetch_references, reference_calls
+
+    settings = dataclasses.replace(QUICK, resolution=24, spp=1, error_resolution=24, error_spp=1, pt_spp=4)
+    calls = reference_calls(["fig2"])
+    assert len(calls) == len(FIGURES["fig2"]().scenes())  # one exact sum per scene, none against path tracing
+    assert prefetch_references(["fig2"], settings, tmp_path, workers=2, progress=False) == len(calls)
+    runner = Runner(settings, tmp_path, progress=False)
+    runner.references(FIGURES["fig2"]())
+    assert (runner.cache.hits, runner.cache.misses) == (len(calls), 0)
+    assert prefetch_references(["fig2"], settings, tmp_path, workers=1, progress=False) == 0  # all cached

@@ -117,6 +117,39 @@ def _cluster(scheduler, workers, retries):
     return Client(cluster), cluster
 
 
+def on_cluster(function, calls, scheduler=None, workers=None, retries=3, progress=True, desc="tasks", echo=print):
+    """``function(*args)`` for every ``args`` of ``calls`` on Dask workers (a local cluster of ``workers``
+    processes, or ``scheduler``'s); returns each call's result or the exception it raised, in order (a call whose
+    worker died on every try: a :class:`ConvsssError` saying so)."""
+    from distributed import as_completed
+    from tqdm import tqdm
+
+    client, cluster = _cluster(scheduler, workers, retries)
+    futures = {client.submit(function, *args, key=f"convsss-{desc}-{k}-{time.time_ns()}", pure=False): k
+               for k, args in enumerate(calls)}
+    results = [None] * len(futures)
+    bar = tqdm(total=len(futures), desc=desc, unit="task", disable=not progress)
+    try:
+        if client.dashboard_link:
+            echo(f"{desc}: {len(futures)} on Dask; dashboard {client.dashboard_link}")
+        for future in as_completed(futures):
+            try:
+                results[futures[future]] = future.result()
+            except Exception as error:  # handed back: the caller says what failed
+                results[futures[future]] = ConvsssError(_failure(error, retries))
+            bar.update()
+    except KeyboardInterrupt:
+        for future in futures:
+            future.cancel()
+        raise
+    finally:
+        bar.close()
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return results
+
+
 def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=run_job, echo=print,
               progress=True):
     """Run ``batch``'s jobs that ``out`` does not hold complete yet; returns ``{job id: record}``.
@@ -126,7 +159,7 @@ def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=
     from distributed import as_completed
     from tqdm import tqdm
 
-    out = Path(out)
+    out = Path(out).resolve()  # the workers' own working folder is not ours
     out.mkdir(parents=True, exist_ok=True)
     records = {}
     for job in batch.jobs:
@@ -173,16 +206,20 @@ def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=
     return records
 
 
-def _outcome(future, retries):
-    """A finished future's record: its result, or ``failed`` with the reason."""
+def _failure(error, retries):
+    """What a job's or a task's exception says, in one line."""
     from distributed import KilledWorker
 
+    if isinstance(error, KilledWorker):
+        return f"its worker died on every try ({retries} allowed; killed or out of memory)"
+    if isinstance(error, ConvsssError):
+        return str(error)
+    return f"{type(error).__name__}: {error}"
+
+
+def _outcome(future, retries):
+    """A finished job's record: its result, or ``failed`` with the reason (the batch goes on)."""
     try:
         return future.result()
-    except KilledWorker:
-        return {"status": "failed", "error": f"its worker died on every try ({retries} allowed; killed or out of "
-                                             "memory)"}
-    except ConvsssError as error:
-        return {"status": "failed", "error": str(error)}
     except Exception as error:  # the command's own failure, reported in its manifest row
-        return {"status": "failed", "error": f"{type(error).__name__}: {error}"}
+        return {"status": "failed", "error": _failure(error, retries)}

@@ -20,7 +20,8 @@
 Instead of ``[axes]``, ``[[jobs]]`` tables list the jobs one by one (each a table of options over ``[scene]``).
 An option is any of the command's (``convsss render --help``: ``material``, ``color``, ``mfp_mm``, ``profile``,
 ``transport``, ``light_scale``, ``orbit_deg``, ``width``, ``spp``, ``seed``, every integrator parameter, ...),
-written with underscores or dashes; ``true`` is a flag. The runner sets ``-o``, ``--stats`` and ``--progress``.
+written with underscores or dashes; ``true`` is a flag. ``file`` and ``mesh`` are relative to the SPEC. The
+runner sets ``-o``, ``--stats`` and ``--progress``.
 """
 
 import itertools
@@ -120,9 +121,7 @@ def batch_from_spec(spec, folder=".", max_jobs=MAX_JOBS):
         raise SpecError([f"command {command!r} is not allowed: give one of {', '.join(COMMANDS)}"])
     allowed = option_names(command)
     base = _options(spec.get("scene", {}), allowed, "[scene]", problems)
-    if "file" in base:
-        file = Path(base.pop("file"))
-        base["scene_file"] = str(file if file.is_absolute() else Path(folder) / file)
+
     axes, listed = spec.get("axes", {}), spec.get("jobs", [])
     if axes and listed:
         problems.append("give [axes] or [[jobs]], not both")
@@ -155,7 +154,7 @@ def batch_from_spec(spec, folder=".", max_jobs=MAX_JOBS):
             combos.append((varied, options))
     jobs = []
     for index, (varied, options) in enumerate(combos):
-        job = Job(_job_id(index, varied), {**base, **options}, varied)
+        job = Job(_job_id(index, varied), _files({**base, **options}, folder), varied)
         problems += [f"job {job.id}: {p}" for p in check_job(command, job)]
         jobs.append(job)
     problems += _scene_problems(jobs)
@@ -182,6 +181,18 @@ def _scene_problems(jobs):
             failed[file] = " ".join(str(error).split())[:200]
     return [f"job {job.id}: the scene {job.options['scene_file']!r} does not load: {failed[job.options['scene_file']]}"
             for job in jobs if job.options.get("scene_file") in failed]
+
+
+def _files(options, folder):
+    """``file`` as the command's scene file, and it and ``mesh`` relative to the SPEC's ``folder``, made absolute
+    (the workers run elsewhere)."""
+    options = dict(options)
+    if "file" in options:
+        options["scene_file"] = options.pop("file")
+    for name in ("scene_file", "mesh"):
+        if name in options and options[name] != "bunny":
+            options[name] = str((Path(folder) / options[name]).resolve())
+    return options
 
 
 def _options(table, allowed, where, problems):

@@ -17,8 +17,14 @@ from .options import PROGRESS
 @click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False), default="out/figures", show_default=True,
               help="Output folder: one sub-folder per figure, report.md, figures.json; references cached in "
                    "OUT/cache and reused by the next run.")
+@click.option("--workers", type=click.IntRange(1), default=None,
+              help="Render the references first on a local Dask cluster of this many worker processes (the panels "
+                   "then render here one at a time: their seconds are part of the figures).")
+@click.option("--scheduler", metavar="tcp://HOST:PORT",
+              help="Render the references first on a running Dask scheduler's workers (convsss installed there, "
+                   "OUT reachable at the same path).")
 @PROGRESS
-def figures(quick, only, out_dir, progress):
+def figures(quick, only, out_dir, workers, scheduler, progress):
     """Regenerate the paper's figures: per figure a contact sheet PNG (captions: parameters, seconds,
     convolutions per layer c, errors against the exact sum and volpathmis), the panels' EXRs, and one report.md.
 
@@ -36,6 +42,7 @@ def figures(quick, only, out_dir, progress):
     Examples:
       convsss figures --quick -o out/figures-quick
       convsss figures --only fig2,fig5
+      convsss figures --workers 2                         # the references on two worker processes
     """
     from ..figures import FULL, QUICK, render_figures
     from ..figures.run import select
@@ -43,6 +50,6 @@ def figures(quick, only, out_dir, progress):
     names = select(only)
     check_outputs([Path(out_dir) / "report.md", Path(out_dir) / "figures.json"])
     start = time.perf_counter()
-    report, run = render_figures(names, QUICK if quick else FULL, out_dir, progress)
+    report, run = render_figures(names, QUICK if quick else FULL, out_dir, progress, scheduler, workers)
     click.echo(f"wrote {report} ({len(names)} figures, {sum(len(f['panels']) for f in run['figures'])} panels, "
                f"{run['cache']['hits']} cached references reused, {time.perf_counter() - start:.0f} s)")

@@ -17,14 +17,18 @@ Example::
 from .specs import FIGURES, FULL, QUICK, Settings
 
 
-def render_figures(names, settings, out, progress=True):
+def render_figures(names, settings, out, progress=True, scheduler=None, workers=None):
     """Render the figures ``names`` (e.g. ``["fig2", "fig5"]``) with ``settings`` into ``out``; write the report.
+    With ``scheduler`` (``tcp://HOST:PORT``) or ``workers`` (a local cluster's processes), the references are first
+    rendered on Dask (:func:`.run.prefetch_references`).
 
     Returns ``(report_path, run)`` where ``run`` is the dict also written to ``out/figures.json``.
     """
     from .report import write_report
-    from .run import Runner
+    from .run import Runner, prefetch_references
 
+    if scheduler or workers:
+        prefetch_references(list(names), settings, out, scheduler, workers, progress)
     run = Runner(settings, out, progress).run(list(names))
     return write_report(out, run), run
 

@@ -70,6 +70,49 @@ def select(only):
     return [n for n in FIGURES if n in names]
 
 
+def reference_calls(names):
+    """Every reference the figures ``names`` read, once each: ``(kind, spec, overrides)`` with ``kind`` ``exact`` or
+    ``volpathmis`` (:meth:`Runner.references` reads the same)."""
+    calls = {}
+    for name in names:
+        figure = FIGURES[name]()
+        for spec in figure.scenes():
+            calls[("exact", spec, "")] = ("exact", spec, None)
+            if figure.versus_pt:
+                calls[("volpathmis", spec, "")] = ("volpathmis", spec, None)
+                for column, overrides in PROFILE_COLUMNS.items():
+                    calls[("exact", spec, column)] = ("exact", spec, overrides)
+    return list(calls.values())
+
+
+def compute_reference(kind, spec, overrides, settings, cache_root):
+    """One reference rendered into the cache at ``cache_root`` (in a worker: :func:`prefetch_references`); returns
+    ``(kind, scene description, whether it was cached already)``."""
+    s, cache = settings, ReferenceCache(cache_root)
+    if kind == "exact":
+        _, _, hit = exact_reference(spec, cache, s.error_resolution, s.error_spp, s.seed, overrides=overrides)
+    else:
+        _, _, hit = path_traced_reference(spec, cache, s.error_resolution, s.pt_spp, s.pass_spp, s.seed,
+                                          progress=False)
+    return kind, spec.describe(), hit
+
+
+def prefetch_references(names, settings, out, scheduler=None, workers=None, progress=True):
+    """The figures' references rendered on Dask workers into ``out/cache`` (:func:`convsss.batch.runner.on_cluster`),
+    so that the run that follows reads them all from the cache. The panels are not: their seconds are part of the
+    figures, measured one at a time on this machine. Returns how many were rendered; a one-line error names the
+    first that failed."""
+    from ..batch.runner import on_cluster
+
+    calls = [(kind, spec, overrides, settings, str(Path(out).resolve() / "cache"))
+             for kind, spec, overrides in reference_calls(names)]
+    results = on_cluster(compute_reference, calls, scheduler, workers, progress=progress, desc="references")
+    for (kind, spec, *_), result in zip(calls, results):
+        if isinstance(result, Exception):
+            raise ConvsssError(f"the {kind} reference of {spec.describe()} failed on the cluster: {result}")
+    return sum(not hit for _, _, hit in results)
+
+
 class Runner:
     """Renders figures with :class:`~convsss.figures.specs.Settings` into ``out``; see the module docstring."""
 
