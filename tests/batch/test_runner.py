@@ -133,3 +133,18 @@ def test_ctrl_c_stops_the_workers_and_leaves_the_manifest_of_what_finished(tmp_p
     assert again.returncode == 0 and "8 of 8 jobs done" in again.stdout  # resumed
     done = json.loads(manifest.read_text())["jobs"]
     assert sum(bool(job.get("skipped")) for job in done) == statuses.count("done")
+
+
+@pytest.mark.slow
+def test_jobs_go_to_a_running_scheduler(tmp_path):
+    """--scheduler: a cluster started elsewhere (here a LocalCluster of this test) runs the jobs; it stays up."""
+    from distributed import LocalCluster
+
+    batch = batch_from_spec({"scene": {**SPEC["scene"], "material": "skin1", "width": 16, "height": 16},
+                             "axes": {"seed": [1, 2]}})
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        records = run_batch(batch, tmp_path, scheduler=cluster.scheduler_address, echo=_quiet, progress=False)
+        assert [records[j.id]["status"] for j in batch.jobs] == ["done", "done"]
+        assert cluster.status.name == "running"
+    with pytest.raises(Exception, match="no Dask scheduler answers at tcp://127.0.0.1:9"):
+        run_batch(batch, tmp_path / "none", scheduler="tcp://127.0.0.1:9", echo=_quiet, progress=False)
