@@ -20,7 +20,8 @@ INTERRUPTED = 130
 
 
 #: The commands, each the module of :mod:`convsss.cli` of its name that registers it on :data:`cli` when imported.
-COMMANDS = ("batch", "bench", "compare", "edit", "figures", "materials", "profile", "reference", "render", "scene")
+COMMANDS = ("batch", "bench", "compare", "edit", "figures", "fit", "materials", "profile", "reference", "render",
+            "scene")
 
 
 class _ConvsssGroup(click.Group):

@@ -367,6 +367,30 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                           screen_exitance={"usable": screen.usable, "queries": screen.queries})
         return self._shader
 
+    @_one_at_a_time
+    def reprepare(self, objects):
+        """Stages 1–3 again for the last :meth:`prepare`'s scene, sensor and seed with ``objects`` (the prepared
+        objects, in that order, with other materials: same shapes, same ``eta``), keeping its plan: the same sample
+        count and positions, their irradiance drawn again (a new reduced albedo changes its entry gain). What a fit
+        needs between materials (:mod:`convsss.fit`): the image then changes smoothly with the material, where a new
+        :meth:`prepare` would size the samples by the new profile. Returns the new :class:`Shader`."""
+        state = self.prepared
+        if state is None:
+            raise ConvsssError("nothing is prepared to redo: call prepare() first")
+        every, frame, seen, plan = state.survey
+        every = list(every)
+        if len(objects) != len(plan.objects) or not all(
+                new.shape is every[q.index].shape and same_eta(new.eta, every[q.index].eta)
+                for new, q in zip(objects, plan.objects)):
+            raise ConvsssError("reprepare keeps the prepared objects and their eta: call prepare() for other ones")
+        for new, q in zip(objects, plan.objects):
+            every[q.index] = new
+        keep = self._keep
+        try:
+            return self._prepare(state.scene, state.sensor, state.seed, survey=(every, frame, seen, plan))
+        finally:
+            self._keep = keep
+
     def checkpoint(self):
         """What :meth:`prepare`, :meth:`retransport` and :meth:`render_prepared` change, for :meth:`restore` (an
         edit applied whole or not at all)."""

@@ -1,0 +1,320 @@
+"""Materials from images: the translucent object's material that makes a render match a target image.
+
+The inverse problem of the renderer: given a scene (its geometry, lights and camera as the user modelled them) and
+a target image of it, find one translucent object's reduced albedo ``alpha'`` and reduced mean free path
+``1/sigma_t'`` per channel (``eta`` as the scene has it) such that the ``convsss`` render matches the target over the
+object's pixels. SciPy's bounded trust-region least squares (:func:`scipy.optimize.least_squares`, a robust
+``soft_l1`` loss against highlights) works on ``logit(alpha')`` and ``log(mfp)``; the residual per object pixel
+and channel is ``(s I - T) / (T + f)``, ``f`` 1 % of the target's channel mean, ``s`` the exposure (fitted with
+``fit_exposure``, else 1).
+
+The forward model (:class:`Forward`) reuses what the material does not change: the scene is surveyed and planned
+once, and every evaluation draws the same samples (the same seed and count: the residuals are smooth in the
+parameters) and their irradiance again for the new material (``reprepare``: it depends on ``alpha'`` through the
+entry gain and on ``sigma_t'`` through the light that crosses thin parts). The channels are rendered
+independently, so one evaluation with every channel's ``alpha'`` moved gives the Jacobian's ``alpha'`` columns of
+all three (and one more its ``mfp`` columns): two evaluations per Jacobian instead of six.
+Uncertainties come from the Jacobian at the solution, ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residuals'
+variance.
+"""
+
+import dataclasses
+import time
+
+import numpy as np
+
+from .errors import ConvsssError
+
+#: Bounds of the fit: reduced albedo and reduced mean free path (mm).
+ALBEDO_BOUNDS = (1e-3, 0.9999)
+MFP_BOUNDS_MM = (1e-4, 1e4)
+#: The start's mean free path times these, per channel the best kept (:func:`_initial_mfp`).
+MFP_START_FACTORS = (1.0 / 9.0, 1.0 / 3.0, 1.0, 3.0, 9.0)
+#: The relative step of the finite differences, in the fit's variables.
+STEP = 1e-3
+#: The floor of the relative residual, as a share of the target's channel mean (as convsss.compare's).
+FLOOR = 0.01
+
+
+@dataclasses.dataclass
+class FitResult:
+    """What :func:`fit` found: the ``material`` (a :class:`~convsss.materials.Material`), per channel
+    ``reduced_albedo`` and ``mfp_mm`` with their standard deviations, the ``exposure``, the ``render`` (H, W, 3) at
+    the fitted material, the object ``mask``, ``history`` (cost per evaluation), ``evaluations``, ``seconds`` and
+    ``success`` / ``message`` of the optimizer."""
+
+    material: object
+    reduced_albedo: np.ndarray
+    reduced_albedo_std: np.ndarray
+    mfp_mm: np.ndarray
+    mfp_mm_std: np.ndarray
+    exposure: float
+    render: np.ndarray
+    mask: np.ndarray
+    history: list
+    evaluations: int
+    seconds: float
+    success: bool
+    message: str
+
+    def to_dict(self):
+        """JSON-ready: the material per channel, the exposure, the optimizer's counts and seconds."""
+        return {"material": {"reduced_albedo": self.reduced_albedo.tolist(),
+                             "reduced_albedo_std": self.reduced_albedo_std.tolist(),
+                             "mfp_mm": self.mfp_mm.tolist(), "mfp_mm_std": self.mfp_mm_std.tolist(),
+                             "eta": float(self.material.eta),
+                             "sigma_s_prime_per_mm": self.material.sigma_s_prime.tolist(),
+                             "sigma_a_per_mm": self.material.sigma_a.tolist()},
+                "exposure": self.exposure, "evaluations": self.evaluations, "seconds": self.seconds,
+                "seconds_per_evaluation": self.seconds / max(self.evaluations, 1), "success": self.success,
+                "message": self.message, "history": self.history}
+
+
+def material_of(albedo, mfp_mm, eta, name="fitted"):
+    """The :class:`~convsss.materials.Material` of reduced albedo ``albedo`` and reduced mean free path ``mfp_mm``
+    (per channel), ``sigma_t' = 1 / mfp``, ``sigma_s' = albedo sigma_t'``, ``sigma_a = sigma_t' - sigma_s'``."""
+    from .materials import Material
+
+    albedo, sigma_t = np.asarray(albedo, dtype=np.float64), 1.0 / np.asarray(mfp_mm, dtype=np.float64)
+    return Material(albedo * sigma_t, (1.0 - albedo) * sigma_t, eta, name)
+
+
+class Forward:
+    """The render of ``scene`` through ``sensor`` with object ``index``'s material set, (H, W, 3) float64.
+
+    ``integrator`` is a ``convsss`` integrator; ``seed`` and ``spp`` fixed for every evaluation. See the module
+    docstring for what each evaluation reuses; ``evaluations`` and ``seconds`` count them."""
+
+    def __init__(self, scene, integrator, sensor, index, seed=0, spp=4):
+        self.scene, self.integrator, self.sensor, self.index = scene, integrator, sensor, index
+        self.seed, self.spp = seed, spp
+        self.evaluations, self.seconds = 0, 0.0
+
+    @property
+    def obj(self):
+        return self.integrator.prepared.objects[self.index]
+
+    def __call__(self, material):
+        from .profiles.models import is_model, parse_profile_spec, resolve_profile
+
+        start = time.perf_counter()
+        p = self.integrator.params
+        default, per_object = parse_profile_spec(p.profile)
+        spec = per_object.get(self.obj.name, per_object.get(self.obj.name.split("/")[0], default))
+        if not is_model(spec):
+            raise ConvsssError(f"translucent shape {self.obj.name!r} renders with the tabulated profile {spec!r}: "
+                               "a fit needs a profile model (the integrator's profile parameter)")
+        objects = list(self.integrator.prepared.objects)
+        objects[self.index] = dataclasses.replace(
+            self.obj, material=material, profile=resolve_profile(spec, material, p.profile_total, p.orders))
+        # The same samples, their irradiance drawn again: it depends on the reduced albedo (the entry gain) and on
+        # sigma_t' too, through the indirect paths that cross the object's thin parts (Eq. S3), so retransport,
+        # which keeps it, would leave the image a little off the material (0.5 % on a 20 mm skin1 bunny, mfp x2).
+        self.integrator.reprepare(objects)
+        image = np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
+        self.evaluations += 1
+        self.seconds += time.perf_counter() - start
+        return image
+
+
+class _Variables:
+    """The fit's variables: ``logit(R / R_max)`` of the colour ``R`` (the exact total reflectance of ``alpha'`` at
+    ``eta``, what the image's brightness fixes) and ``log(mfp)`` (what its blur fixes), nearly apart where
+    ``(alpha', mfp)`` trade one for the other; ``R_max`` the colour of the largest albedo."""
+
+    def __init__(self, eta):
+        from .profiles.models import exact_total
+
+        self.eta = eta
+        self.top = float(exact_total(np.array([ALBEDO_BOUNDS[1]]), eta)[0])
+        self.bottom = float(exact_total(np.array([ALBEDO_BOUNDS[0]]), eta)[0])
+
+    def encode(self, albedo, mfp):
+        from .profiles.models import exact_total
+
+        share = np.clip(exact_total(np.asarray(albedo, dtype=np.float64), self.eta) / self.top, 1e-9, 1 - 1e-9)
+        return np.concatenate([np.log(share / (1.0 - share)), np.log(mfp)])
+
+    def decode(self, x):
+        from .profiles.models import albedo_from_reflectance
+
+        colour = self.top / (1.0 + np.exp(-x[:3]))
+        colour = np.clip(colour, self.bottom * (1 + 1e-9), self.top * (1 - 1e-9))
+        return np.clip(albedo_from_reflectance("exact", colour, self.eta), *ALBEDO_BOUNDS), np.exp(x[3:6])
+
+    def bounds(self):
+        return (np.concatenate([np.full(3, -25.0), np.full(3, np.log(MFP_BOUNDS_MM[0]))]),
+                np.concatenate([np.full(3, 25.0), np.full(3, np.log(MFP_BOUNDS_MM[1]))]))
+
+
+def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, seed=0, spp=4, max_evaluations=60,
+        progress=None):
+    """Fit one translucent object's material so that ``scene``'s render matches ``target``; a :class:`FitResult`.
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+        Loaded, with its own lights, geometry and camera (the first sensor); its integrator's parameters are used
+        when it names ``convsss``.
+    target : (H, W, 3) array_like
+        Linear RGB, the sensor's crop size.
+    object : str, optional
+        The translucent shape's id (required when the scene has several).
+    mask : (H, W) array_like, optional
+        The pixels to match (nonzero); default: where the camera sees the object first.
+    start : Material, optional
+        The starting material (default: the scene's).
+    fit_exposure : bool
+        Also fit a scale of the render (a photo of unknown exposure).
+    seed, spp : int
+        The renders' seed and samples per pixel (the same for every evaluation).
+    max_evaluations : int
+        Renders at most (about two per iteration, and one per Jacobian column pair).
+    progress : callable, optional
+        ``progress(evaluation, cost)`` after each evaluation.
+    """
+    from scipy.optimize import least_squares
+
+    from .scene.integrator import ConvsssIntegrator, register
+    from .scene.objects import find_translucent_objects
+
+    mi = register()
+    sensor = scene.sensors()[0]
+    target = np.asarray(target, dtype=np.float64)[..., :3]
+    width, height = (int(n) for n in sensor.film().crop_size())
+    if target.shape[:2] != (height, width):
+        raise ConvsssError(f"the target is {target.shape[1]}x{target.shape[0]} pixels and the sensor's film "
+                           f"{width}x{height}: render the target at the film's size or resize the film")
+    if not np.all(np.isfinite(target)):
+        raise ConvsssError("the target holds NaN or infinite pixels: give a finite linear image")
+    named = scene.integrator()
+    params = named.params.to_dict() if isinstance(named, ConvsssIntegrator) else {}
+    integrator = mi.load_dict({"type": "convsss", **params})
+    every = [o.name for o in find_translucent_objects(mi, scene, integrator.params.unit_mm)]
+    if object is None and len(every) > 1:
+        raise ConvsssError(f"the scene has {len(every)} translucent objects ({', '.join(every)}): name one to fit "
+                           "(--object)")
+    if object is not None and object not in every:
+        raise ConvsssError(f"no translucent object {object!r}: the scene has {', '.join(every)}")
+    if mask is not None:
+        mask = np.asarray(mask) != 0
+        if mask.shape != (height, width):
+            raise ConvsssError(f"the mask is {mask.shape[1]}x{mask.shape[0]} pixels and the film {width}x{height}")
+        if not mask.any():
+            raise ConvsssError("the mask holds no pixel: nothing to fit")
+    forward = Forward(scene, integrator, sensor, 0, seed, spp)
+    integrator.prepare(scene, sensor, seed)
+    names = [o.name for o in integrator.prepared.objects]
+    if (object or every[0]) not in names:
+        raise ConvsssError(f"the camera does not see translucent object {object or every[0]!r}: nothing to fit")
+    forward.index = names.index(object or every[0])
+    objects = integrator.prepared.objects
+    inside = _object_mask(integrator, forward.index, (height, width)) if mask is None else mask
+    base = objects[forward.index].material
+    start = base if start is None else start
+    albedo0 = np.clip(start.albedo_prime, *ALBEDO_BOUNDS)
+    mfp0 = np.clip(start.mfp_mm, *MFP_BOUNDS_MM)
+    goal = target[inside]
+    floor = FLOOR * np.maximum(goal.mean(axis=0), 1e-12)
+    weight = 1.0 / (goal + floor)
+    history = []
+    begun = time.perf_counter()
+
+    def residual_of(image, scale):
+        return ((scale * image[inside] - goal) * weight)
+
+    variables = _Variables(base.eta)
+
+    def split(x):
+        albedo, mfp = variables.decode(x)
+        return albedo, mfp, (float(np.exp(x[6])) if fit_exposure else 1.0)
+
+    cache = {}
+
+    def render(albedo, mfp):
+        key = (tuple(albedo), tuple(mfp))
+        if key not in cache:
+            cache.clear()
+            cache[key] = forward(material_of(albedo, mfp, base.eta, base.name))
+        return cache[key]
+
+    def residuals(x):
+        albedo, mfp, scale = split(x)
+        r = residual_of(render(albedo, mfp), scale)
+        history.append(float(0.5 * np.sum(r**2)))
+        if progress is not None:
+            progress(forward.evaluations, history[-1])
+        return r.ravel()
+
+    def jacobian(x):
+        albedo, mfp, scale = split(x)
+        here = render(albedo, mfp)[inside]
+        n = here.shape[0]
+        columns = np.zeros((n, 3, len(x)))
+        for block in (0, 3):  # every channel's alpha' at once, then every channel's mfp: the channels are apart
+            moved = x.copy()
+            moved[block:block + 3] += STEP
+            a, m = variables.decode(moved)
+            image = forward(material_of(a, m, base.eta, base.name))[inside]
+            derivative = (image - here) * scale * weight / STEP
+            for c in range(3):
+                columns[:, c, block + c] = derivative[:, c]
+        if fit_exposure:
+            columns[:, :, 6] = scale * here * weight
+        return columns.reshape(n * 3, len(x))
+
+    mfp0 = _initial_mfp(forward, base.eta, albedo0, mfp0, inside, goal, weight)
+    x0 = variables.encode(albedo0, mfp0)
+    lower, upper = variables.bounds()
+    if fit_exposure:
+        x0, lower, upper = np.append(x0, 0.0), np.append(lower, -20.0), np.append(upper, 20.0)
+    # Tolerances: the variables (logit alpha', log mfp) to 1e-5, far below what the image's noise constrains.
+    solution = least_squares(residuals, x0, jac=jacobian, bounds=(lower, upper), loss="soft_l1", f_scale=0.1,
+                             x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
+    albedo, mfp, scale = split(solution.x)
+    image = render(albedo, mfp)
+    std = _deviations(solution, variables, albedo, mfp)
+    return FitResult(material_of(albedo, mfp, base.eta, base.name), albedo, std[0], mfp, std[1], scale,
+                     scale * image, inside, history, forward.evaluations, time.perf_counter() - begun,
+                     bool(solution.success), str(solution.message))
+
+
+def _initial_mfp(forward, eta, albedo, mfp, inside, goal, weight):
+    """Per channel, the start's mean free path times the one of :data:`MFP_START_FACTORS` whose render matches the
+    target's shape best (each channel's render scaled to the target's brightness first, so that a wrong colour
+    does not pick the blur): the channels render together, one evaluation per factor. A least-squares fit from a
+    mean free path far off can settle where the image no longer depends on it (an object looking opaque, or
+    clear)."""
+    best, chosen = np.full(3, np.inf), np.array(mfp, dtype=np.float64)
+    for factor in MFP_START_FACTORS:
+        image = forward(material_of(albedo, mfp * factor, eta))[inside]
+        scale = np.sum(image * goal * weight**2, axis=0) / np.maximum(np.sum((image * weight) ** 2, axis=0), 1e-30)
+        cost = np.sum(((scale * image - goal) * weight) ** 2, axis=0)
+        better = cost < best
+        best[better], chosen[better] = cost[better], (mfp * factor)[better]
+    return np.clip(chosen, *MFP_BOUNDS_MM)
+
+
+def _deviations(solution, variables, albedo, mfp):
+    """Standard deviations of alpha' and mfp from the Jacobian at the solution, carried from the fit's variables
+    to ``alpha'`` by a finite difference of :meth:`_Variables.decode`; NaN where the image does not constrain
+    them."""
+    jac, r = solution.jac, solution.fun
+    dof = max(len(r) - len(solution.x), 1)
+    variance = float(np.sum(r**2)) / dof
+    with np.errstate(invalid="ignore", divide="ignore"):
+        try:
+            sd = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac) * variance))
+        except np.linalg.LinAlgError:
+            sd = np.full(len(solution.x), np.nan)
+    moved = solution.x.copy()
+    moved[:3] += STEP
+    slope = np.abs(variables.decode(moved)[0] - albedo) / STEP
+    return sd[:3] * slope, sd[3:6] * mfp
+
+
+def _object_mask(integrator, index, shape):
+    """Where the camera sees object ``index`` first (its visible pixel centres), (H, W) bool."""
+    mask = np.zeros(shape[0] * shape[1], dtype=bool)
+    mask[integrator.prepared.visible[index].pixel] = True
+    return mask.reshape(shape)

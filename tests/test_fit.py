@@ -1,0 +1,105 @@
+"""Materials from images (convsss.fit, convsss fit): the closed loop on convsss's own renders, and bad input."""
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import convsss
+from convsss.cli import cli
+from convsss.fit import fit, material_of
+from convsss.image import write_exr
+
+
+def test_material_of_gives_the_reduced_albedo_and_mean_free_path():
+    m = material_of([0.9, 0.5, 0.1], [2.0, 1.0, 0.5], 1.3)
+    np.testing.assert_allclose(m.albedo_prime, [0.9, 0.5, 0.1])
+    np.testing.assert_allclose(m.mfp_mm, [2.0, 1.0, 0.5])
+    assert m.eta == 1.3
+
+
+@pytest.fixture(scope="module")
+def mi():
+    return convsss.register()
+
+
+def _scene(mi, material, width=32):
+    from convsss.scene.quick import demo_mesh, quick_scene
+
+    return mi.load_dict(quick_scene(demo_mesh(), material, 20.0, width=width, height=width, spp=4, boundary="null",
+                                    integrator={"type": "convsss"}))
+
+
+@pytest.mark.slow
+def test_the_closed_loop_recovers_the_material(mi):
+    """A target rendered by convsss (seed 0, 4 spp), fitted from albedo x 0.7 and mfp x 3: the fit renders with the
+    same samples, so it finds the material to the optimizer's tolerance."""
+    truth = convsss.material("skin1")
+    target = np.array(convsss.render(_scene(mi, truth), seed=0, spp=4))[..., :3]
+    start = material_of(truth.albedo_prime * 0.7, truth.mfp_mm * 3.0, 1.0)
+    result = fit(_scene(mi, truth), target, start=start, spp=4, max_evaluations=80)
+    np.testing.assert_allclose(result.reduced_albedo, truth.albedo_prime, rtol=1e-4)
+    np.testing.assert_allclose(result.mfp_mm, truth.mfp_mm, rtol=1e-3)
+    assert result.exposure == 1.0 and result.history[-1] < 1e-6 * result.history[0]
+    assert np.all(result.reduced_albedo_std < 1e-3) and result.evaluations <= 80 + 10
+
+
+@pytest.mark.slow
+def test_an_unknown_exposure_is_fitted_beside_the_material(mi):
+    """The same at twice the exposure with fit_exposure: brightness is then shared by the scale and the albedo, so
+    only the profile's shape tells them apart; held to 1 % (albedo, exposure) and 5 % (mfp)."""
+    truth = convsss.material("marble")
+    target = 2.0 * np.array(convsss.render(_scene(mi, truth, 24), seed=0, spp=4))[..., :3]
+    start = material_of(truth.albedo_prime * 0.9, truth.mfp_mm * 2.0, 1.0)
+    result = fit(_scene(mi, truth, 24), target, start=start, fit_exposure=True, spp=4, max_evaluations=80)
+    np.testing.assert_allclose(result.reduced_albedo, truth.albedo_prime, rtol=0.01)
+    np.testing.assert_allclose(result.mfp_mm, truth.mfp_mm, rtol=0.05)
+    assert result.exposure == pytest.approx(2.0, rel=0.01)
+
+
+@pytest.fixture
+def scene_file(tmp_path):
+    result = CliRunner().invoke(cli, ["scene", "--material", "skin1", "--size-mm", "20", "--boundary", "null",
+                                      "--width", "24", "--height", "24", "-o", str(tmp_path / "s.xml")])
+    assert result.exit_code == 0, result.output
+    return tmp_path / "s.xml"
+
+
+@pytest.mark.parametrize("case, message", [
+    ("size", "the target is 16x16 pixels and the sensor's film 24x24"),
+    ("nan", "the target holds NaN"),
+    ("object", "no translucent object 'nothing'"),
+    ("mask", "the mask holds no pixel"),
+])
+def test_bad_input_is_refused_in_one_line_before_any_render(scene_file, tmp_path, case, message):
+    target = np.full((16, 16, 3) if case == "size" else (24, 24, 3), 0.5)
+    if case == "nan":
+        target[3, 4, 1] = np.nan
+    write_exr(tmp_path / "t.exr", target)
+    args = ["fit", str(scene_file), str(tmp_path / "t.exr"), "-o", str(tmp_path / "out" / "fitted"), "--no-progress"]
+    if case == "object":
+        args += ["--object", "nothing"]
+    if case == "mask":
+        write_exr(tmp_path / "m.exr", np.zeros((24, 24, 3)))
+        args += ["--mask", str(tmp_path / "m.exr")]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2 and message in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_the_command_writes_the_material_the_render_and_the_plots(scene_file, tmp_path):
+    render = CliRunner().invoke(cli, ["render", str(scene_file), "-o", str(tmp_path / "target"), "--spp", "2",
+                                      "--no-progress"])
+    assert render.exit_code == 0, render.output
+    result = CliRunner().invoke(cli, ["fit", str(scene_file), str(tmp_path / "target.exr"), "-o",
+                                      str(tmp_path / "fitted"), "--spp", "2", "--max-evaluations", "8", "--check",
+                                      "--no-progress"])
+    assert result.exit_code == 0, result.output
+    record = json.loads((tmp_path / "fitted.json").read_text())
+    assert len(record["material"]["reduced_albedo"]) == 3 and record["evaluations"] >= 8
+    medium = (tmp_path / "fitted-medium.xml").read_text()
+    assert 'type="homogeneous"' in medium and 'type="convsss_medium"' in medium
+    for name in ("fitted.exr", "fitted.png", "fitted-residual.png", "fitted-convergence.png", "fitted-check.png"):
+        assert (tmp_path / name).stat().st_size > 0
