@@ -119,6 +119,31 @@ def bench_noise_command(width, spp, passes, as_json, progress):
     click.echo(json.dumps(rows, indent=1) if as_json else noise_table(rows, width))
 
 
+@bench.command("fit")
+@click.option("--case", "cases", multiple=True,
+              type=click.Choice(["skin1", "marble", "ketchup", "skin1-env", "colour"]),
+              help="A case (repeat for several) [default: all]: the 20 mm bunny in skin1, marble, ketchup under two "
+                   "point lights, skin1 under a constant environment, and a colour (0.7, 0.5, 0.3) at 1.5 mm.")
+@click.option("--width", type=click.IntRange(16, 4096), default=128, show_default=True,
+              help="Image width and height (square).")
+@click.option("--reference-spp", type=click.IntRange(1), default=1024, show_default=True,
+              help="Samples per pixel of the two volpathmis references (seeds 1 and 2).")
+@click.option("--json", "as_json", is_flag=True, help="Print the rows as JSON.")
+@PROGRESS
+def bench_fit_command(cases, width, reference_spp, as_json, progress):
+    """Materials from images on ground truth: convsss fit of volpathmis renders of known materials.
+
+    Per case, two references (their difference is the reference's noise) and a fit of the first from reduced
+    albedo x 0.7 and mean free path x 3; printed: truth, fitted and their errors per channel, the renders and
+    seconds of the fit, the fitted render's mean against the target's and the true material's (convsss's bias).
+    """
+    from ..bench.fit import CASES, bench_fit, fit_table
+
+    chosen = tuple(c for c in CASES if not cases or c[0] in cases)
+    rows = bench_fit(chosen, width, reference_spp, progress=progress)
+    click.echo(json.dumps(rows, indent=1) if as_json else fit_table(rows))
+
+
 @bench.command("volpath")
 @click.option("--scene", "scenes", multiple=True, type=click.Choice(["milk40", "marble40", "skin40", "ketchup40",
                                                                       "milk40-area"]),
