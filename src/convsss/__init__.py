@@ -23,7 +23,7 @@ def __getattr__(name):
         return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
-__all__ = ["ConvsssError", "DipoleProfile", "Material", "Profile", "TabulatedProfile", "catalog", "material",
+__all__ = ["ConvsssError", "DipoleProfile", "Material", "Profile", "TabulatedProfile", "catalog", "fit", "material",
            "material_from_color", "model_profile", "register", "render", "__version__"]
 
 
@@ -48,3 +48,12 @@ def render(scene, *args, **kwargs):
     from .scene import render as _render
 
     return _render(scene, *args, **kwargs)
+
+
+def fit(scene, target, **options):
+    """A translucent object's material fitted so that ``scene`` renders like ``target`` ((H, W, 3) linear RGB):
+    :func:`convsss.fitting.fit`, returning a :class:`~convsss.fitting.FitResult` (``reduced_albedo``, ``mfp_mm``,
+    their uncertainties, the fitted ``render``)."""
+    from .fitting import fit as _fit
+
+    return _fit(scene, target, **options)

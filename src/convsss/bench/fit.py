@@ -45,8 +45,9 @@ def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=4, progress=True):
     ``mfp_mm`` each) and ``error`` (relative), ``evaluations``, ``seconds``, ``reference_noise`` (relative RMS of
     the two references' difference / sqrt 2), ``fitted_ratio`` and ``truth_ratio`` (mean render / mean target)."""
     import convsss
-    from convsss.fit import fit, material_of
-    from convsss.scene.reference import render_reference
+
+    from ..fitting import fit, material_of
+    from ..scene.reference import render_reference
 
     mi = convsss.register()
     rows = []

@@ -1,4 +1,4 @@
-"""``convsss fit``: a translucent object's material from a target image (:mod:`convsss.fit`)."""
+"""``convsss fit``: a translucent object's material from a target image (:mod:`convsss.fitting`)."""
 
 import json
 from pathlib import Path
@@ -60,8 +60,8 @@ def fit(scene_file, target, output, object_id, mask, start, fit_exposure, spp, s
     if mask:
         weights = np.any(read_image(mask) > 0, axis=-1)
     from ..backend import load_mitsuba
-    from ..fit import fit as run_fit
-    from ..fit import material_of
+    from ..fitting import fit as run_fit
+    from ..fitting import material_of
     from ..materials import material as preset
     from ..scene.integrator import register
     from ..scene.loading import load_scene, scene_inputs

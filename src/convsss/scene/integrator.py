@@ -372,7 +372,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         """Stages 1–3 again for the last :meth:`prepare`'s scene, sensor and seed with ``objects`` (the prepared
         objects, in that order, with other materials: same shapes, same ``eta``), keeping its plan: the same sample
         count and positions, their irradiance drawn again (a new reduced albedo changes its entry gain). What a fit
-        needs between materials (:mod:`convsss.fit`): the image then changes smoothly with the material, where a new
+        needs between materials (:mod:`convsss.fitting`): the image then changes smoothly with the material, where a new
         :meth:`prepare` would size the samples by the new profile. Returns the new :class:`Shader`."""
         state = self.prepared
         if state is None:

@@ -1,4 +1,4 @@
-"""Materials from images (convsss.fit, convsss fit): the closed loop on convsss's own renders, and bad input."""
+"""Materials from images (convsss.fitting, convsss fit): the closed loop on convsss's own renders, and bad input."""
 
 import json
 
@@ -8,7 +8,7 @@ from click.testing import CliRunner
 
 import convsss
 from convsss.cli import cli
-from convsss.fit import fit, material_of
+from convsss.fitting import fit, material_of
 from convsss.image import write_exr
 
 
