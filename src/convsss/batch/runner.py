@@ -99,8 +99,10 @@ def write_manifest(out, batch, records):
     atomic_write(out / "manifest.csv", lambda tmp: Path(tmp).write_text(text.getvalue()))
 
 
+@contextlib.contextmanager
 def _cluster(scheduler, workers, retries):
-    """A Dask client: to ``scheduler``, or to a new local cluster of ``workers`` processes (one thread each)."""
+    """A Dask client, closed on leaving: to ``scheduler``, or to a new local cluster of ``workers`` processes (one
+    thread each), closed with it."""
     import dask
     from distributed import Client, LocalCluster
 
@@ -108,23 +110,32 @@ def _cluster(scheduler, workers, retries):
                      "distributed.worker.daemon": False, "distributed.admin.tick.limit": "1h"})
     if scheduler:
         try:
-            return Client(scheduler, timeout="10s"), None
+            client = Client(scheduler, timeout="10s")
         except OSError as error:
             raise ConvsssError(f"no Dask scheduler answers at {scheduler}: {error}") from None
+        with client:
+            yield client
+        return
     workers = workers or os.cpu_count() or 1
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                            silence_logs=40)
-    return Client(cluster), cluster
+    with cluster, Client(cluster) as client:
+        yield client
 
 
 def on_cluster(function, calls, scheduler=None, workers=None, retries=3, progress=True, desc="tasks", echo=print):
     """``function(*args)`` for every ``args`` of ``calls`` on Dask workers (a local cluster of ``workers``
     processes, or ``scheduler``'s); returns each call's result or the exception it raised, in order (a call whose
     worker died on every try: a :class:`ConvsssError` saying so)."""
+    with _cluster(scheduler, workers, retries) as client:
+        return _gather(client, function, calls, retries, progress, desc, echo)
+
+
+def _gather(client, function, calls, retries, progress, desc, echo):
+    """:func:`on_cluster` on ``client``."""
     from distributed import as_completed
     from tqdm import tqdm
 
-    client, cluster = _cluster(scheduler, workers, retries)
     futures = {client.submit(function, *args, key=f"convsss-{desc}-{k}-{time.time_ns()}", pure=False): k
                for k, args in enumerate(calls)}
     results = [None] * len(futures)
@@ -144,9 +155,6 @@ def on_cluster(function, calls, scheduler=None, workers=None, retries=3, progres
         raise
     finally:
         bar.close()
-        client.close()
-        if cluster is not None:
-            cluster.close()
     return results
 
 
@@ -156,9 +164,6 @@ def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=
 
     ``job_function(command, job_id, args, folder)`` runs one job in a worker (:func:`run_job`; a test may give its
     own). Ctrl-C cancels what is left and writes the manifest of what finished before it re-raises."""
-    from distributed import as_completed
-    from tqdm import tqdm
-
     out = Path(out).resolve()  # the workers' own working folder is not ours
     out.mkdir(parents=True, exist_ok=True)
     records = {}
@@ -171,7 +176,23 @@ def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=
     if not todo:
         echo(f"batch: all {len(batch.jobs)} jobs complete in {out}; nothing to run")
         return records
-    client, cluster = _cluster(scheduler, workers, retries)
+    try:
+        with _cluster(scheduler, workers, retries) as client:
+            _run_jobs(client, batch, todo, out, records, retries, job_function, echo, progress)
+    finally:
+        for job in todo:  # a job a worker finished while the batch stopped is complete on disk
+            done = completed(out, job) if records.get(job.id, {}).get("status") != "done" else None
+            if done is not None:
+                records[job.id] = done
+        write_manifest(out, batch, records)
+    return records
+
+
+def _run_jobs(client, batch, todo, out, records, retries, job_function, echo, progress):
+    """:func:`run_batch`'s jobs ``todo`` on ``client``, ``records`` and the manifest updated as each ends."""
+    from distributed import as_completed
+    from tqdm import tqdm
+
     bar = tqdm(total=len(todo), desc="batch", unit="job", disable=not progress)
     futures = {}
     try:
@@ -196,14 +217,6 @@ def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=
         raise
     finally:
         bar.close()
-        client.close()
-        if cluster is not None:
-            cluster.close()
-        for job in todo:  # a job a worker finished while the batch stopped is complete on disk
-            if records.get(job.id, {}).get("status") != "done" and completed(out, job) is not None:
-                records[job.id] = completed(out, job)
-        write_manifest(out, batch, records)
-    return records
 
 
 def _failure(error, retries):
