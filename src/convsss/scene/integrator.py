@@ -282,7 +282,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         cells = [q.pixel_footprint_mm for q in plan.objects]
         per_object = [{**obj.summary(), **q.summary(obj.area_mm2)} for obj, q in zip(shown, plan.objects)]
         lighting = light_samples(scene, objects, plan, p, _seed(seed), stage, self.should_stop)
-        transports = build_transports(lighting.samples, lighting.irradiance, [o.profile for o in shown], cells, frame,
+        transports = build_transports(lighting.samples, lighting.irradiance, shown, cells, frame,
                                       p, stage)
         transports, from_translucent, passes = translucent_passes(transports, lighting, p.indirect_passes, stage,
                                                                   self.should_stop)
@@ -352,7 +352,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self._stage(name)
             return timer(name)
 
-        transports = build_transports(state.samples, state.irradiance, [o.profile for o in objects], state.cells,
+        transports = build_transports(state.samples, state.irradiance, objects, state.cells,
                                       state.frame, p, stage)
         transports, _, passes = translucent_passes(transports, state.lighting, p.indirect_passes, stage,
                                                    self.should_stop)

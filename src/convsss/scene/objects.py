@@ -26,6 +26,7 @@ from ..errors import ConvsssError
 from ..materials import Material
 from ..profiles.models import DEFAULT_TOTAL, PROFILE_MODELS, parse_profile_spec, resolve_profile
 from .irradiance import area_scale, has_vertices, mesh_arrays, sample_surface
+from .media import SURVEY_POINTS, MediumField, medium_classes
 from .presets import any_named_media, check_boundary, check_color_model, named_medium_of
 
 #: Mitsuba class names of the boundaries a translucent object may have.
@@ -65,6 +66,9 @@ class TranslucentObject:
     closed : bool                the surface is known to bound a volume (a watertight mesh, a sphere)
     bbox_mm : (2, 3) array       world-space bounding box in mm
     area_mm2 : float             world surface area in mm^2
+    classes : MediumClasses      a heterogeneous interior's classes (:mod:`.media`), None for a homogeneous one;
+                                 ``material`` is then their mean
+    class_profiles : tuple       the classes' profiles, in their order
     """
 
     shape: object
@@ -79,6 +83,13 @@ class TranslucentObject:
     closed: bool
     bbox_mm: np.ndarray
     area_mm2: float
+    classes: object = None
+    class_profiles: tuple = ()
+
+    @property
+    def profiles(self):
+        """Every profile the object's light spreads with: its classes' (a heterogeneous interior), or its one."""
+        return self.class_profiles or (self.profile,)
 
     def hit(self, shapes, instances):
         """Which lanes hit this object, from the per-lane registry indices of :func:`hit_indices`.
@@ -132,14 +143,33 @@ def _rgb(params, key, what, name):
     return np.broadcast_to(value, (3,)).copy() if value.size in (1, 3) else value[:3]
 
 
+def _phase_g(params):
+    return float(np.asarray(params["phase_function.g"]).reshape(-1)[0]) if "phase_function.g" in params else 0.0
+
+
 def medium_material(mi, medium, eta, unit_mm, name):
     """The :class:`Material` of a Mitsuba homogeneous ``medium`` whose coefficients are per scene unit."""
     params = mi.traverse(medium)
     sigma_t = _rgb(params, "sigma_t.value.value", "sigma_t", name)
     albedo = _rgb(params, "albedo.value.value", "albedo", name)
     scale = float(params["scale"]) if "scale" in params else 1.0
-    g = float(np.asarray(params["phase_function.g"]).reshape(-1)[0]) if "phase_function.g" in params else 0.0
-    return Material.from_medium(sigma_t * scale / unit_mm, albedo, 1.0, g, eta, name)
+    return Material.from_medium(sigma_t * scale / unit_mm, albedo, 1.0, _phase_g(params), eta, name)
+
+
+def interior_material(mi, medium, eta, unit_mm, name, shape, to_world, orientation, bbox_mm):
+    """``(material, classes)`` of a translucent shape's interior: a homogeneous medium's :class:`Material` and None;
+    a heterogeneous medium's classes over the surface (:func:`~.media.medium_classes`, checked: covering the object,
+    finite, non-negative, albedo at most 1) and their mean, or its one material where it does not vary there."""
+    if medium.class_name() == "HomogeneousMedium":
+        return medium_material(mi, medium, eta, unit_mm, name), None
+    field = MediumField(medium, unit_mm, _phase_g(mi.traverse(medium)), name)
+    position, _, _ = sample_surface(shape, SURVEY_POINTS, seed=0, orientation=orientation, to_world=to_world)
+    survey = np.asarray(position, dtype=np.float64).reshape(3, -1).T * unit_mm
+    field.check(survey, bbox_mm)
+    classes = medium_classes(field, survey, eta)
+    if isinstance(classes, Material):
+        return classes, None
+    return classes.mean, classes
 
 
 def boundary_eta(mi, bsdf, name):
@@ -426,28 +456,33 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
         medium = shape.interior_medium()
         if medium is None:
             continue
-        if medium.class_name() != "HomogeneousMedium":
+        if medium.class_name() not in ("HomogeneousMedium", "HeterogeneousMedium"):
             raise ConvsssError(f"shape {name!r} has a {medium.class_name()!r} interior medium: only 'homogeneous' "
-                               "media are supported")
+                               "and 'heterogeneous' media are supported")
         boundary, eta = boundary_eta(mi, shape.bsdf(), name)
         named = named_medium_of(mi, medium)  # a <medium type="convsss_medium">: a preset, or colour + mfp
         if named is not None:
             check_boundary(named, boundary, eta, name, unit_mm)
-        mat = medium_material(mi, medium, eta, unit_mm, name)
         index = shape_index(mi, shape)
         if index not in surfaces:
             surfaces[index] = _surface(mi, shape, name)
         to_world = instance_to_world(mi, instance)
+        bbox_mm = world_bbox(shape, to_world) * unit_mm
+        mat, classes = interior_material(mi, medium, eta, unit_mm, name, shape, to_world, surfaces[index][0], bbox_mm)
         spec = per_object.get(name, per_object.get(name.split("/")[0], default_spec))
         check_color_model(named, spec, name, total)
         if spec not in PROFILE_MODELS and spec not in tables:
+            if classes is not None:
+                raise ConvsssError(f"translucent shape {name!r}: its medium varies in space, and a tabulated profile "
+                                   f"({spec}) is one material's: give it a profile model")
             tables[spec] = resolve_profile(spec, mat, total, orders)
         obj = TranslucentObject(shape=shape, name=name, material=mat, boundary=boundary,
                                 profile=tables.get(spec) or resolve_profile(spec, mat, total, orders),
                                 shape_index=index, instance_index=0 if instance is None else shape_index(mi, instance),
                                 to_world=to_world, orientation=surfaces[index][0], closed=surfaces[index][1],
-                                bbox_mm=world_bbox(shape, to_world) * unit_mm,
-                                area_mm2=world_area(shape, to_world) * unit_mm**2)
+                                bbox_mm=bbox_mm, area_mm2=world_area(shape, to_world) * unit_mm**2,
+                                classes=classes, class_profiles=() if classes is None else tuple(
+                                    resolve_profile(spec, m, total, orders) for m in classes.materials))
         if not (np.all(np.isfinite(obj.bbox_mm)) and np.isfinite(obj.area_mm2)):
             raise ConvsssError(f"translucent shape {name!r} reaches infinity (a vertex or a transform that is not "
                                "finite, or too large for float32)")

@@ -29,6 +29,7 @@ import numpy as np
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..memory import USABLE_FRACTION, available_memory, check_memory
+from ..transport.mixture import PARTS_PER_CLASS
 from .irradiance import has_vertices, mesh_arrays, sample_count
 
 mi = load_mitsuba()
@@ -194,7 +195,7 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
     cell = transport.layer_cell(footprint, p.transport_params())
     count_pixel = sample_count(obj.area_mm2, cell, p.sample_density)
     held_params = transport_params(p, footprint)
-    profile_area = transport.sample_area(obj.profile, held_params)
+    profile_area = min(transport.sample_area(profile, held_params) for profile in obj.profiles)
     count = wanted = sample_count(obj.area_mm2, cell, p.sample_density, profile_area, p.profile_samples)
     if count > count_pixel:
         count = max(count_pixel, min(count, sample_cap(scene, p)))
@@ -204,7 +205,8 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
                           f"the memory and time limits allow; {count} used: expect about "
                           f"{(wanted / count) ** 0.7:.1f}x that noise", SampleNoiseWarning, stacklevel=4)
     bounds = view_bounds(obj, frame, p.unit_mm)
-    held = transport.planned_bytes(bounds, obj.profile, count, held_params)
+    held = sum(transport.planned_bytes(bounds, profile, count, held_params) for profile in obj.profiles)
+    held *= PARTS_PER_CLASS if obj.classes is not None else 1  # Eq. H1: each class's transports
     check_memory(count * BYTES_PER_SAMPLE + held,
                  f"{count} surface samples of {obj.name!r} ({_span(obj, p.unit_mm)}) and its {p.transport} transport",
                  transport.memory_advice)

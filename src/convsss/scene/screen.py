@@ -94,7 +94,7 @@ class ScreenExitance:
         for k, (obj, seen, transport) in enumerate(zip(objects, visible, transports)):
             if not self.usable or len(seen.pixel) == 0:
                 continue
-            reach[k] = REACH * core_width(obj.profile) / unit_mm
+            reach[k] = REACH * max(core_width(profile) for profile in obj.profiles) / unit_mm
             owner[seen.pixel] = k
             position[seen.pixel] = seen.position / unit_mm
             normal[seen.pixel] = seen.normal

@@ -1,0 +1,239 @@
+"""Media whose coefficients vary in space: a Mitsuba ``heterogeneous`` interior as a few homogeneous classes.
+
+A translucent object's interior may be a ``heterogeneous`` medium whose ``sigma_t`` and ``albedo`` are volume
+textures (``gridvolume``, ``constvolume``), as Mitsuba writes it, so that the same file renders with ``volpathmis``.
+Mitsuba evaluates the coefficients (``Medium.get_scattering_coefficients``) wherever convsss asks:
+
+* **The survey** (:func:`medium_classes`): at points spread over the object's surface, the reduced coefficients
+  present. Per channel they are points ``q = (1/2 log(1 - alpha'), log l)`` (the log of the diffusion length over
+  the mean free path, and of the mean free path ``l``), which lie near one line when one thing varies (two media
+  mixed, a colour map at one mean free path, one medium fading into another); the line is their principal axis.
+  Nodes spaced :data:`CLASS_STEP` along it, at most :data:`MAX_CLASSES`, are the classes: node ``k`` of every channel
+  makes the homogeneous :class:`~convsss.materials.Material` of class ``k``, whose profile is a model's as for any
+  object.
+* **The samples** (:meth:`MediumClasses.weights`): each point's coefficients, projected on its channel's axis, split
+  between the two nearest nodes (hat weights, summing to 1 per channel). Light entering at a sample spreads with its
+  classes' profiles, and light leaving at a point with the point's (:mod:`convsss.transport.mixture`, Eq. H1).
+
+A medium whose coefficients are the same wherever the survey looked is homogeneous: it renders exactly as the
+``homogeneous`` medium of those values. What varies off the axis (two independent maps, say albedo and mean free
+path, in one channel) is read at its projection on it. Coefficients deep inside the object reach the render only
+through the surface's: the profile is a half-space's, and a medium layered under the surface is seen as its top.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConvsssError
+from ..materials import CHANNELS, Material
+
+#: Surface points of the survey, and lattice points per side of the object's box checked for bad coefficients.
+SURVEY_POINTS = 4096
+LATTICE = 24
+#: Spacing of the class nodes along a channel's axis (natural-log units: 0.2 is a 22 % step of the diffusion length
+#: or of the mean free path), and their largest count (each class builds its transports).
+CLASS_STEP = 0.2
+MAX_CLASSES = 8
+#: ``1 - alpha'`` at least this (a channel without absorption has an infinite diffusion length).
+ABSORPTION_FLOOR = 1e-6
+#: Coefficients within this relative spread over the survey are one medium's (a constant volume's values read back
+#: through float32 interpolation differ in their last bits).
+CONSTANT_SPREAD = 1e-5
+
+
+@dataclass(frozen=True, eq=False)
+class MediumField:
+    """The reduced coefficients of a Mitsuba medium at any point: ``medium`` (Mitsuba's), ``unit_mm`` mm per scene
+    unit, ``g`` the phase function's mean cosine, ``name`` the shape's (for errors)."""
+
+    medium: object
+    unit_mm: float
+    g: float
+    name: str
+
+    def _scene_coefficients(self, points_mm):
+        """Mitsuba's ``(sigma_s, sigma_t)``, (N, 3) each per scene unit, at ``points_mm`` (N, 3) mm."""
+        import drjit as dr
+        import mitsuba as mi
+
+        points = (np.asarray(points_mm, dtype=np.float64) / self.unit_mm).T.astype(np.float32)
+        mei = dr.zeros(mi.MediumInteraction3f, points.shape[1])
+        mei.p = mi.Point3f(*points)
+        mei.medium = mi.MediumPtr(self.medium)
+        sigma_s, _, sigma_t = self.medium.get_scattering_coefficients(mei, True)
+        return tuple(np.asarray(a, dtype=np.float64).reshape(3, -1).T for a in (sigma_s, sigma_t))
+
+    def _stored(self, name):
+        """The (3,) value of volume ``name`` (``albedo``, ``sigma_t``) where Mitsuba exposes it and it is the same
+        everywhere (a ``constvolume``, a ``gridvolume`` of equal cells), else None."""
+        import mitsuba as mi
+
+        params = mi.traverse(self.medium)
+        for key in (f"{name}.value.value", f"{name}.data"):
+            if key in params:
+                values = np.asarray(params[key], dtype=np.float64)
+                values = values.reshape(-1, values.shape[-1] if key.endswith(".data") else values.size)
+                if np.all(values == values[0]):
+                    return np.broadcast_to(values[0], (3,)) if values.shape[1] in (1, 3) else None
+        return None
+
+    def constant(self, points_mm, eta):
+        """The one :class:`Material` (boundary index ``eta``) of the coefficients at ``points_mm`` (N, 3) where
+        they spread by at most :data:`CONSTANT_SPREAD` there, else None. Built as a ``homogeneous`` medium's, from
+        ``sigma_t`` and the albedo as stored where the volume is constant (the values read back through float32
+        interpolation differ in the last bits), so a constant volume renders as the homogeneous medium of its
+        values."""
+        import mitsuba as mi
+
+        sigma_s, sigma_t = self._scene_coefficients(points_mm)
+        albedo = np.divide(sigma_s, sigma_t, out=np.zeros_like(sigma_s), where=sigma_t > 0)
+        values = [np.median(sigma_t, axis=0), np.median(albedo, axis=0)]
+        if any(np.abs(a - v).max() > CONSTANT_SPREAD * max(np.abs(v).max(), 1e-300) for a, v in zip((sigma_t, albedo),
+                                                                                                     values)):
+            return None
+        params = mi.traverse(self.medium)
+        scale = float(params["scale"]) if "scale" in params else 1.0
+        stored = self._stored("sigma_t")
+        values[0] = values[0] if stored is None else stored * scale
+        values[1] = np.minimum(values[1], 1.0) if (stored := self._stored("albedo")) is None else stored
+        return Material.from_medium(values[0] / self.unit_mm, values[1], 1.0, self.g, eta, self.name)
+
+    def coefficients(self, points_mm):
+        """``(sigma_s', sigma_a)``, (N, 3) each in 1/mm, at ``points_mm`` (N, 3) in mm, world space."""
+        if len(points_mm) == 0:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        sigma_s, sigma_t = (a / self.unit_mm for a in self._scene_coefficients(points_mm))
+        return sigma_s * (1.0 - self.g), np.maximum(sigma_t - sigma_s, 0.0)
+
+    def inside(self, points_mm):
+        """Which of ``points_mm`` (N, 3) lie within the medium's box (Mitsuba's ``intersect_aabb``)."""
+        import mitsuba as mi
+
+        p = (np.asarray(points_mm, dtype=np.float64) / self.unit_mm).T.astype(np.float32)
+        ray = mi.Ray3f(mi.Point3f(*p), mi.Vector3f(1.0, 0.0, 0.0))
+        hit, mint, maxt = self.medium.intersect_aabb(ray)
+        hit, mint, maxt = (np.asarray(a).reshape(-1) for a in (hit, mint, maxt))
+        scale = np.maximum(1.0, np.abs(p).max(axis=0))
+        return hit & (mint <= 1e-5 * scale) & (maxt >= -1e-5 * scale)
+
+    def check_cover(self, points_mm):
+        """A one-line error where a surface point of ``points_mm`` (N, 3) lies outside the medium's box (Mitsuba's
+        heterogeneous medium is empty there)."""
+        outside = ~self.inside(points_mm)
+        if outside.any():
+            at = np.round(np.asarray(points_mm)[np.argmax(outside)] / self.unit_mm, 4).tolist()
+            raise ConvsssError(f"translucent shape {self.name!r}: its heterogeneous medium's volume does not cover "
+                               f"the object ({int(outside.sum())} of {len(outside)} surface points outside it, e.g. "
+                               f"{at} in scene units): give the volumes a to_world that holds the whole shape")
+
+    def check_values(self, points_mm):
+        """A one-line error where the coefficients at ``points_mm`` (N, 3) are not finite, negative or scatter more
+        than they extinguish (an albedo above 1)."""
+        sigma_s, sigma_t = (a.T for a in self._scene_coefficients(points_mm))
+        points = np.asarray(points_mm, dtype=np.float64).T / self.unit_mm
+        for label, bad in (("that are not finite", ~(np.isfinite(sigma_s) & np.isfinite(sigma_t))),
+                           ("that are negative", (sigma_s < 0) | (sigma_t < 0)),
+                           ("with an albedo above 1", sigma_s > sigma_t * (1 + 1e-6) + 1e-30)):
+            if bad.any():
+                c, i = np.unravel_index(np.argmax(bad), bad.shape)
+                raise ConvsssError(f"translucent shape {self.name!r}: its heterogeneous medium has coefficients "
+                                   f"{label} in channel {CHANNELS[c]} (sigma_t = {sigma_t[c, i]:.4g}, sigma_s = "
+                                   f"{sigma_s[c, i]:.4g} at {np.round(points[:, i], 4).tolist()} in scene units)")
+
+    def check(self, survey_mm, bbox_mm):
+        """:meth:`check_cover` on the surface points ``survey_mm``, :meth:`check_values` on them and on a lattice of
+        the object's box ``bbox_mm`` (its points inside the medium)."""
+        self.check_cover(survey_mm)
+        grid = lattice(bbox_mm)
+        self.check_values(np.concatenate([survey_mm, grid[self.inside(grid)]]))
+
+def lattice(bbox_mm, n=LATTICE):
+    """``n^3`` points filling the box ``bbox_mm`` (2, 3), cell centres."""
+    lo, hi = np.asarray(bbox_mm, dtype=np.float64)
+    axes = [lo[c] + (np.arange(n) + 0.5) / n * (hi[c] - lo[c]) for c in range(3)]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
+def _axis_coordinates(sigma_s_prime, sigma_a):
+    """Per channel, the points ``q`` (N, 3, 2) of the module's docstring."""
+    sigma_t_prime = sigma_s_prime + sigma_a
+    albedo = sigma_s_prime / sigma_t_prime
+    return np.stack([0.5 * np.log(np.maximum(1.0 - albedo, ABSORPTION_FLOOR)), -np.log(sigma_t_prime)], axis=-1)
+
+
+def _material(q, eta, name):
+    """The :class:`Material` of per-channel points ``q`` (3, 2)."""
+    sigma_t_prime = np.exp(-q[:, 1])
+    absorbed = np.exp(2.0 * q[:, 0])
+    absorbed = np.where(absorbed <= ABSORPTION_FLOOR * (1 + 1e-9), 0.0, absorbed)
+    return Material(sigma_t_prime * (1.0 - absorbed), sigma_t_prime * absorbed, eta, name)
+
+
+@dataclass(frozen=True, eq=False)
+class MediumClasses:
+    """A heterogeneous medium as ``materials`` (K homogeneous classes) and the rule that splits any point between
+    them (:meth:`weights`): per channel an axis through ``origin`` (3, 2) along ``direction`` (3, 2) with the nodes
+    at coordinates ``nodes`` (3, K); ``mean`` the material at the axes' origin (the survey's mean point), what the
+    object's single-material quantities read (the plan's summary, single scattering, the entry gain)."""
+
+    field: MediumField
+    materials: tuple
+    origin: np.ndarray
+    direction: np.ndarray
+    nodes: np.ndarray
+    mean: Material = None
+
+    def weights(self, points_mm):
+        """``(N, K, 3)`` class weights at ``points_mm`` (N, 3), summing to 1 over the classes per channel."""
+        sigma_s_prime, sigma_a = self.field.coefficients(points_mm)
+        t = np.einsum("ncd,cd->nc", _axis_coordinates(sigma_s_prime, sigma_a) - self.origin, self.direction)
+        count = self.nodes.shape[1]
+        out = np.zeros((len(t), count, 3))
+        if count == 1:
+            out[:] = 1.0
+            return out
+        lo, hi = self.nodes[:, 0], self.nodes[:, -1]
+        s = np.clip((t - lo) / np.where(hi > lo, hi - lo, 1.0), 0.0, 1.0) * (count - 1)
+        j = np.minimum(np.floor(s).astype(int), count - 2)
+        frac = s - j
+        rows, channels = np.arange(len(t))[:, None], np.arange(3)[None, :]
+        out[rows, j, channels] = 1.0 - frac
+        out[rows, j + 1, channels] += frac
+        return out
+
+
+def medium_classes(field, survey_mm, eta):
+    """The classes of ``field`` over the surface points ``survey_mm`` (N, 3) (module docstring): a
+    :class:`MediumClasses`, or the one :class:`Material` where the coefficients do not vary there."""
+    constant = field.constant(survey_mm, eta)
+    if constant is not None:
+        return constant
+    sigma_s_prime, sigma_a = field.coefficients(survey_mm)
+    empty = (sigma_s_prime + sigma_a) <= 0
+    if empty.any():
+        raise ConvsssError(f"translucent shape {field.name!r}: its heterogeneous medium neither scatters nor absorbs "
+                           f"at {int(empty.any(axis=1).sum())} of {len(empty)} surface points (sigma_t = 0): an "
+                           "object that is empty there is not translucent")
+    q = _axis_coordinates(sigma_s_prime, sigma_a)  # (N, 3, 2)
+    origin = q.mean(axis=0)
+    direction = np.zeros((3, 2))
+    spans = np.zeros((3, 2))
+    for c in range(3):
+        centred = q[:, c] - origin[c]
+        _, _, vt = np.linalg.svd(centred, full_matrices=False)
+        direction[c] = vt[0]
+        t = centred @ vt[0]
+        spans[c] = t.min(), t.max()
+    count = int(min(MAX_CLASSES, 1 + max(math.ceil((hi - lo) / CLASS_STEP - 1e-9) for lo, hi in spans)))
+    nodes = np.stack([np.linspace(lo, hi, count) for lo, hi in spans])
+    classes = MediumClasses(field, (), origin, direction, nodes)
+    weight = classes.weights(survey_mm)  # (N, K, 3): each node's material follows the points near it
+    materials = []
+    for k in range(count):
+        total = weight[:, k, :].sum(axis=0)  # (3,)
+        mean = np.einsum("nc,ncd->cd", weight[:, k, :], q) / np.maximum(total, 1e-300)[:, None]
+        on_axis = origin + nodes[:, k, None] * direction
+        materials.append(_material(np.where(total[:, None] > 0, mean, on_axis), eta, f"{field.name} class {k}"))
+    return MediumClasses(field, tuple(materials), origin, direction, nodes, _material(origin, eta, field.name))

@@ -1,0 +1,147 @@
+"""Heterogeneous interiors (:mod:`convsss.scene.media`): a constant volume is the homogeneous medium of its values; a
+varying one splits into classes whose ends are its media and whose weights sum to 1; volumes that do not cover the
+object, and coefficients that are not finite, negative or scatter more than they extinguish, are refused."""
+
+import numpy as np
+import pytest
+
+import convsss
+from convsss.errors import ConvsssError
+from convsss.materials import Material
+from convsss.scene.materials import medium_parameters, translucent
+from convsss.scene.objects import find_translucent_objects
+
+RADIUS = 2.0
+
+
+def _grid(mi, path, values):
+    mi.VolumeGrid(np.ascontiguousarray(values, dtype=np.float32)).write(str(path))
+    return str(path)
+
+
+def _volume(mi, filename, lo=-RADIUS * 1.1, hi=RADIUS * 1.1):
+    """A gridvolume over the cube [lo, hi]^3."""
+    return {"type": "gridvolume", "filename": filename,
+            "to_world": mi.ScalarTransform4f().translate([lo] * 3).scale(hi - lo)}
+
+
+def _sphere(mi, albedo, sigma_t, scale):
+    return {"type": "scene", "s": {"type": "sphere", "radius": RADIUS, "bsdf": {"type": "null"},
+                                   "interior": {"type": "heterogeneous", "albedo": albedo, "sigma_t": sigma_t,
+                                                "scale": scale}}}
+
+
+def _halves(material_left, material_right, n=16):
+    """Albedo cells (n, n, n, 3), Mitsuba's z, y, x order: ``material_left`` for x < 0, ``material_right`` above."""
+    left, right = (medium_parameters(m)["albedo"] for m in (material_left, material_right))
+    x = (np.arange(n) + 0.5) / n
+    return np.where((x < 0.5)[None, None, :, None], left, right) * np.ones((n, n, n, 3))
+
+
+def test_a_constant_volume_is_the_homogeneous_medium(mi, tmp_path):
+    skin = convsss.material("skin1")
+    p = medium_parameters(skin)
+    homogeneous = find_translucent_objects(mi, mi.load_dict({"type": "scene", "s": translucent(
+        {"type": "sphere", "radius": RADIUS}, skin, boundary="null")}))[0]
+    grid = _grid(mi, tmp_path / "albedo.vol", np.broadcast_to(p["albedo"].astype(np.float32), (8, 8, 8, 3)))
+    sigma_t = {"type": "constvolume", "value": {"type": "rgb", "value": p["sigma_t"].tolist()},
+               "to_world": _volume(mi, grid)["to_world"]}
+    (obj,) = find_translucent_objects(mi, mi.load_dict(_sphere(mi, _volume(mi, grid), sigma_t, p["scale"])))
+    assert obj.classes is None and obj.profiles == (obj.profile,)
+    np.testing.assert_array_equal(obj.material.sigma_s_prime, homogeneous.material.sigma_s_prime)
+    np.testing.assert_array_equal(obj.material.sigma_a, homogeneous.material.sigma_a)
+
+
+def test_two_media_make_classes_from_one_to_the_other(mi, tmp_path):
+    skin, marble = convsss.material("skin1"), convsss.material("marble")
+    scale = medium_parameters(skin)["scale"]
+    grid = _grid(mi, tmp_path / "albedo.vol", _halves(skin, marble))
+    sigma_t = {"type": "constvolume", "value": {"type": "rgb", "value": (skin.sigma_t_prime / scale).tolist()},
+               "to_world": _volume(mi, grid)["to_world"]}
+    (obj,) = find_translucent_objects(mi, mi.load_dict(_sphere(mi, _volume(mi, grid), sigma_t, scale)))
+    classes = obj.classes
+    assert classes is not None and len(classes.materials) == len(obj.class_profiles) >= 2
+    # the classes run along 1 - alpha' (the mean free path is skin's throughout): the ends are skin, and marble's
+    # albedo at skin's extinction
+    marble_albedo = Material(skin.sigma_t_prime * marble.sigma_s_prime / marble.sigma_t_prime,
+                             skin.sigma_t_prime * marble.sigma_a / marble.sigma_t_prime, 1.0)
+    darker, lighter = sorted([classes.materials[0], classes.materials[-1]], key=lambda m: -m.sigma_a[0])
+    for end, medium in ((darker, skin), (lighter, marble_albedo)):
+        np.testing.assert_allclose(end.sigma_a, medium.sigma_a, rtol=0.02)
+        np.testing.assert_allclose(end.sigma_t_prime, skin.sigma_t_prime, rtol=1e-5)
+    points = np.array([[-1.9, 0.0, 0.0], [1.9, 0.0, 0.0], [0.0, 1.9, 0.3]])
+    weights = classes.weights(points)
+    assert weights.shape == (3, len(classes.materials), 3)
+    np.testing.assert_allclose(weights.sum(axis=1), 1.0, rtol=1e-12)
+    assert np.all(weights >= 0)
+    # the points deep in each half are all of one end class
+    ends_of = {int(np.argmax(weights[i, :, 0])) for i in (0, 1)}
+    assert ends_of == {0, len(classes.materials) - 1}
+
+
+def _refusal(mi, tmp_path, values, to_world_cube=True):
+    grid = _grid(mi, tmp_path / "albedo.vol", values)
+    volume = _volume(mi, grid) if to_world_cube else {"type": "gridvolume", "filename": grid}
+    sigma_t = {**volume, "type": "gridvolume"}
+    with pytest.raises(ConvsssError) as error:
+        find_translucent_objects(mi, mi.load_dict(_sphere(mi, volume, sigma_t, 5.0)))
+    return str(error.value)
+
+
+def test_a_volume_that_does_not_cover_the_object_is_refused(mi, tmp_path):
+    message = _refusal(mi, tmp_path, np.full((4, 4, 4, 1), 0.9), to_world_cube=False)
+    assert "does not cover the object" in message and "to_world" in message and "\n" not in message
+
+
+@pytest.mark.parametrize("value, words", [(np.nan, "not finite"), (-0.5, "negative"), (1.5, "albedo above 1")])
+def test_bad_coefficients_are_refused(mi, tmp_path, value, words):
+    values = np.full((8, 8, 8, 1), 0.9)
+    values[2:4, 2:4, 2:4] = value  # inside the sphere, off its surface: the lattice finds it
+    message = _refusal(mi, tmp_path, values)
+    assert words in message and "'s'" in message and "\n" not in message
+
+
+def test_a_tabulated_profile_of_a_varying_medium_is_refused(mi, tmp_path):
+    skin, marble = convsss.material("skin1"), convsss.material("marble")
+    grid = _grid(mi, tmp_path / "albedo.vol", _halves(skin, marble))
+    scene = mi.load_dict(_sphere(mi, _volume(mi, grid), {"type": "constvolume", "value": 1.0,
+                                                          "to_world": _volume(mi, grid)["to_world"]}, 3.0))
+    table = tmp_path / "profile.csv"
+    table.write_text("r_mm,R,G,B\n0.1,1,1,1\n1,0.1,0.1,0.1\n10,0.001,0.001,0.001\n")
+    with pytest.raises(ConvsssError, match="varies in space"):
+        find_translucent_objects(mi, scene, profile=str(table))
+
+
+def _render(mi, scene):
+    return np.array(convsss.render(mi.load_dict(scene), seed=0), dtype=np.float64)[..., :3]
+
+
+@pytest.mark.slow
+def test_renders_of_a_constant_and_a_varying_volume(mi, sphere_scene, tmp_path):
+    """A constant volume renders bit for bit as the homogeneous medium; a sphere of two halves renders between the two
+    homogeneous spheres, each side of the image near its half's."""
+    skin, marble = convsss.material("skin1"), convsss.material("marble")
+    p = medium_parameters(skin)
+    homogeneous = sphere_scene(material="skin1", res=24)
+    constant = _grid(mi, tmp_path / "constant.vol", np.broadcast_to(p["albedo"].astype(np.float32), (4, 4, 4, 3)))
+    halves = _grid(mi, tmp_path / "halves.vol", _halves(skin, marble))
+    images = {}
+    for name, grid in (("constant", constant), ("halves", halves)):
+        scene = sphere_scene(material="skin1", res=24)
+        volume = _volume(mi, grid)
+        sigma_t = {"type": "constvolume", "value": {"type": "rgb", "value": p["sigma_t"].tolist()},
+                   "to_world": volume["to_world"]}
+        scene["object"]["interior"] = {"type": "heterogeneous", "albedo": volume, "sigma_t": sigma_t,
+                                       "scale": p["scale"]}
+        images[name] = _render(mi, scene)
+    images["skin"] = _render(mi, homogeneous)
+    np.testing.assert_array_equal(images["constant"], images["skin"])
+    lighter = sphere_scene(res=24)
+    lighter["object"]["interior"]["albedo"] = {"type": "rgb", "value": medium_parameters(marble)["albedo"].tolist()}
+    images["lighter"] = _render(mi, lighter)
+    assert images["skin"].sum() < images["halves"].sum() < images["lighter"].sum()
+    # each side of the image leans to its half's medium (the seam is at the centre column; light crosses it)
+    ratio = sorted(images["halves"][:, sl].sum() / images["skin"][:, sl].sum() for sl in (slice(0, 10),
+                                                                                           slice(14, 24)))
+    gain = images["lighter"].sum() / images["skin"].sum()
+    assert gain > 1.3 and ratio[1] - ratio[0] > 0.5 * (gain - 1)
