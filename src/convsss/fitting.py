@@ -105,8 +105,8 @@ class Forward:
             raise ConvsssError(f"translucent shape {self.obj.name!r} renders with the tabulated profile {spec!r}: "
                                "a fit needs a profile model (the integrator's profile parameter)")
         objects = list(self.integrator.prepared.objects)
-        objects[self.index] = dataclasses.replace(
-            self.obj, material=material, profile=resolve_profile(spec, material, p.profile_total, p.orders))
+        objects[self.index] = self.obj.with_material(material, resolve_profile(spec, material, p.profile_total,
+                                                                               p.orders))
         # The same samples, their irradiance drawn again: it depends on the reduced albedo (the entry gain) and on
         # sigma_t' too, through the indirect paths that cross the object's thin parts (Eq. S3), so retransport,
         # which keeps it, would leave the image a little off the material (0.5 % on a 20 mm skin1 bunny, mfp x2).

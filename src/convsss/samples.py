@@ -125,9 +125,14 @@ class LocalIrradiance:
 
     def __call__(self, points, normals=None):
         """``E`` (K, 3) at ``points`` (K, 3) mm, with their outward unit ``normals`` (K, 3) if known."""
+        return self.average(self.samples.irradiance, points, normals)
+
+    def average(self, values, points, normals=None):
+        """The same mean of any per-sample ``values`` (N, ...) at ``points``: (K, ...)."""
         points = as_points(points)
+        values = np.asarray(values)
         if len(points) == 0:
-            return np.zeros((0, 3))
+            return np.zeros((0, *values.shape[1:]))
         _, index = self._tree.query(points, k=self.neighbours, workers=-1)
         index = index.reshape(len(points), -1)
         weight = self.samples.area[index]
@@ -137,7 +142,7 @@ class LocalIrradiance:
             weight = np.where(facing >= self.cos_limit, weight, 0.0)
             weight[weight.sum(axis=1) == 0, 0] = 1.0  # none on this side: the nearest sample
         weight /= weight.sum(axis=1, keepdims=True)
-        return np.stack([(weight * self.samples.irradiance[index, c]).sum(axis=1) for c in range(3)], axis=1)
+        return np.einsum("kj,kj...->k...", weight, values[index])
 
 
 @dataclass(frozen=True, eq=False)

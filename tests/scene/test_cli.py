@@ -212,8 +212,8 @@ def _scene_with(tmp_path, shape):
 
 BAD = {
     "no translucent shape": ('<shape type="sphere"/>', "no translucent shape"),
-    "medium not homogeneous": ('<shape type="sphere"><bsdf type="null"/><medium type="heterogeneous" '
-                               'name="interior"/></shape>', "only 'homogeneous'"),
+    "volume not covering": ('<shape type="sphere"><bsdf type="null"/><medium type="heterogeneous" '
+                            'name="interior"/></shape>', "does not cover the object"),
     "eta below 1": ('<shape type="sphere"><bsdf type="dielectric"><float name="int_ior" value="1.0"/>'
                     '<float name="ext_ior" value="1.33"/></bsdf><medium type="homogeneous" name="interior"/>'
                     '</shape>', "must be >= 1"),
@@ -696,3 +696,33 @@ def test_progress_counts_passes_once_the_integrator_names_them(capsys):
     lines = [line.split(" at ")[0] for line in capsys.readouterr().err.splitlines()]
     assert lines == ["render: scene_load (1/8)", "render: pass 1/3", "render: samples", "render: shading",
                      "render: pass 2/3", "render: pass 3/3", "render: done"]
+
+
+def test_scene_with_an_albedo_volume(mi, tmp_path):
+    """--volume: the interior is Mitsuba's heterogeneous medium of the file's albedo over the object's box, named
+    relative to the scene; it loads as an object of classes. A file that is not a volume, or not an albedo, is one
+    line and exit code 2, and nothing is written."""
+    from convsss import material
+    from convsss.scene.loading import load_scene
+    from convsss.scene.objects import find_translucent_objects
+
+    x = (np.arange(16) + 0.5) / 16
+    albedo = np.where((x < 0.5)[None, None, :, None], 0.9, 0.999) * np.ones((16, 16, 16, 3))
+    (tmp_path / "grids").mkdir()
+    mi.VolumeGrid(albedo.astype(np.float32)).write(str(tmp_path / "grids" / "halves.vol"))
+    out = tmp_path / "halves.xml"
+    result = run("scene", "--material", "marble", "--size-mm", 20, "--boundary", "null", "--width", 8, "--height", 8,
+                 "--volume", tmp_path / "grids" / "halves.vol", "-o", out)
+    assert result.exit_code == 0, result.output
+    text = out.read_text()
+    assert '<medium type="heterogeneous" name="interior">' in text
+    assert '<volume type="gridvolume" name="albedo">' in text
+    assert '<string name="filename" value="grids/halves.vol"/>' in text
+    (obj,) = find_translucent_objects(mi, load_scene(out))
+    assert obj.classes is not None and len(obj.class_profiles) >= 2
+    np.testing.assert_allclose(obj.material.sigma_t_prime, material("marble").sigma_t_prime, rtol=1e-5)
+    mi.VolumeGrid(np.full((2, 2, 2, 1), 1.5, dtype=np.float32)).write(str(tmp_path / "bright.vol"))
+    for bad, words in ((tmp_path / "halves.xml", "not a Mitsuba grid volume"), (tmp_path / "bright.vol", "[0, 1]")):
+        result = run("scene", "--material", "marble", "--size-mm", 20, "--volume", bad, "-o", tmp_path / "bad.xml")
+        assert result.exit_code == 2 and words in result.output and len(result.output.strip().splitlines()) == 1
+        assert not (tmp_path / "bad.xml").exists()

@@ -11,7 +11,9 @@ from convsss.materials import Material
 from convsss.scene.materials import medium_parameters, translucent
 from convsss.scene.objects import find_translucent_objects
 
-RADIUS = 2.0
+#: The spheres' radius (mm): several diffusion lengths of skin1 (at most 3.7 mm), so that the column under a
+#: surface point (Eq. H2, three diffusion lengths) stays in its half of a sphere of two halves.
+RADIUS = 20.0
 
 
 def _grid(mi, path, values):
@@ -19,14 +21,14 @@ def _grid(mi, path, values):
     return str(path)
 
 
-def _volume(mi, filename, lo=-RADIUS * 1.1, hi=RADIUS * 1.1):
-    """A gridvolume over the cube [lo, hi]^3."""
+def _volume(mi, filename, radius=RADIUS):
+    """A gridvolume over the cube that holds the sphere of ``radius``, 10 % to spare."""
     return {"type": "gridvolume", "filename": filename,
-            "to_world": mi.ScalarTransform4f().translate([lo] * 3).scale(hi - lo)}
+            "to_world": mi.ScalarTransform4f().translate([-1.1 * radius] * 3).scale(2.2 * radius)}
 
 
-def _sphere(mi, albedo, sigma_t, scale):
-    return {"type": "scene", "s": {"type": "sphere", "radius": RADIUS, "bsdf": {"type": "null"},
+def _sphere(mi, albedo, sigma_t, scale, radius=RADIUS):
+    return {"type": "scene", "s": {"type": "sphere", "radius": radius, "bsdf": {"type": "null"},
                                    "interior": {"type": "heterogeneous", "albedo": albedo, "sigma_t": sigma_t,
                                                 "scale": scale}}}
 
@@ -55,10 +57,12 @@ def test_a_constant_volume_is_the_homogeneous_medium(mi, tmp_path):
 def test_two_media_make_classes_from_one_to_the_other(mi, tmp_path):
     skin, marble = convsss.material("skin1"), convsss.material("marble")
     scale = medium_parameters(skin)["scale"]
+    radius = 4 * RADIUS  # the columns (three diffusion lengths of marble's albedo, up to 25 mm) within their half
     grid = _grid(mi, tmp_path / "albedo.vol", _halves(skin, marble))
+    volume = _volume(mi, grid, radius)
     sigma_t = {"type": "constvolume", "value": {"type": "rgb", "value": (skin.sigma_t_prime / scale).tolist()},
-               "to_world": _volume(mi, grid)["to_world"]}
-    (obj,) = find_translucent_objects(mi, mi.load_dict(_sphere(mi, _volume(mi, grid), sigma_t, scale)))
+               "to_world": volume["to_world"]}
+    (obj,) = find_translucent_objects(mi, mi.load_dict(_sphere(mi, volume, sigma_t, scale, radius)))
     classes = obj.classes
     assert classes is not None and len(classes.materials) == len(obj.class_profiles) >= 2
     # the classes run along 1 - alpha' (the mean free path is skin's throughout): the ends are skin, and marble's
@@ -69,8 +73,8 @@ def test_two_media_make_classes_from_one_to_the_other(mi, tmp_path):
     for end, medium in ((darker, skin), (lighter, marble_albedo)):
         np.testing.assert_allclose(end.sigma_a, medium.sigma_a, rtol=0.02)
         np.testing.assert_allclose(end.sigma_t_prime, skin.sigma_t_prime, rtol=1e-5)
-    points = np.array([[-1.9, 0.0, 0.0], [1.9, 0.0, 0.0], [0.0, 1.9, 0.3]])
-    weights = classes.weights(points)
+    points = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.99, 0.14]]) * radius
+    weights = classes.weights(points, points / np.linalg.norm(points, axis=1, keepdims=True))
     assert weights.shape == (3, len(classes.materials), 3)
     np.testing.assert_allclose(weights.sum(axis=1), 1.0, rtol=1e-12)
     assert np.all(weights >= 0)
@@ -122,12 +126,12 @@ def test_renders_of_a_constant_and_a_varying_volume(mi, sphere_scene, tmp_path):
     homogeneous spheres, each side of the image near its half's."""
     skin, marble = convsss.material("skin1"), convsss.material("marble")
     p = medium_parameters(skin)
-    homogeneous = sphere_scene(material="skin1", res=24)
+    homogeneous = sphere_scene(material="skin1", radius=RADIUS, res=24)
     constant = _grid(mi, tmp_path / "constant.vol", np.broadcast_to(p["albedo"].astype(np.float32), (4, 4, 4, 3)))
     halves = _grid(mi, tmp_path / "halves.vol", _halves(skin, marble))
     images = {}
     for name, grid in (("constant", constant), ("halves", halves)):
-        scene = sphere_scene(material="skin1", res=24)
+        scene = sphere_scene(material="skin1", radius=RADIUS, res=24)
         volume = _volume(mi, grid)
         sigma_t = {"type": "constvolume", "value": {"type": "rgb", "value": p["sigma_t"].tolist()},
                    "to_world": volume["to_world"]}
@@ -136,7 +140,7 @@ def test_renders_of_a_constant_and_a_varying_volume(mi, sphere_scene, tmp_path):
         images[name] = _render(mi, scene)
     images["skin"] = _render(mi, homogeneous)
     np.testing.assert_array_equal(images["constant"], images["skin"])
-    lighter = sphere_scene(res=24)
+    lighter = sphere_scene(radius=RADIUS, res=24)
     lighter["object"]["interior"]["albedo"] = {"type": "rgb", "value": medium_parameters(marble)["albedo"].tolist()}
     images["lighter"] = _render(mi, lighter)
     assert images["skin"].sum() < images["halves"].sum() < images["lighter"].sum()
@@ -145,3 +149,30 @@ def test_renders_of_a_constant_and_a_varying_volume(mi, sphere_scene, tmp_path):
                                                                                            slice(14, 24)))
     gain = images["lighter"].sum() / images["skin"].sum()
     assert gain > 1.3 and ratio[1] - ratio[0] > 0.5 * (gain - 1)
+
+
+def test_the_column_under_a_point_reaches_the_medium_below(mi, tmp_path):
+    """Eq. H2 on a flat top face over two layers: a dark top a diffusion length thick over a light body reads well
+    between them; a thick one reads as the top, none as the body."""
+    from convsss.scene.media import MediumField
+
+    n = 64  # cells along y over [0, 64) mm: the top face at y = 64, a layer of `top` mm under it
+    def column(top_mm):
+        albedo = np.full((n, n, n, 1), 0.999)
+        albedo[:, n - int(top_mm):, :] = 0.9  # (z, y, x): the cells of y above 64 - top_mm
+        grid = _grid(mi, tmp_path / f"layers{top_mm}.vol", albedo)
+        medium = mi.load_dict({"type": "heterogeneous", "scale": 2.0,
+                               "albedo": {"type": "gridvolume", "filename": grid,
+                                          "to_world": mi.ScalarTransform4f().scale(float(n))},
+                               "sigma_t": {"type": "constvolume", "value": 1.0,
+                                           "to_world": mi.ScalarTransform4f().scale(float(n))}})
+        field = MediumField(medium, 1.0, 0.0, "layers")
+        point, up = np.array([[32.0, 63.999, 32.0]]), np.array([[0.0, 1.0, 0.0]])
+        return field.coefficients(point)[1][0, 0], field.column_coefficients(point, up)[1][0, 0]
+
+    dark, light = 2.0 * 0.1, 2.0 * 0.001  # sigma_a of the two layers (1/mm)
+    surface, thick = column(48)
+    assert surface == pytest.approx(dark, rel=1e-4) and thick == pytest.approx(dark, rel=1e-4)
+    surface, thin = column(1)
+    assert surface == pytest.approx(dark, rel=1e-4) and 10 * light < thin < 0.8 * dark
+    assert column(0)[1] == pytest.approx(light, rel=1e-4)

@@ -41,7 +41,7 @@ def test_hg_phase_reduces_scattering(mi):
       "interior": {"type": "homogeneous"}}, "eta = int_ior/ext_ior = 0.6667"),
     ({"type": "sphere", "bsdf": {"type": "diffuse"}, "interior": {"type": "homogeneous"}}, "'SmoothDiffuse' BSDF"),
     ({"type": "sphere", "bsdf": {"type": "null"}, "interior": {"type": "heterogeneous"}},
-     "'HeterogeneousMedium' interior medium"),
+     "heterogeneous medium's volume does not cover the object"),
 ])
 def test_bad_objects(mi, shape, message):
     with pytest.raises(ConvsssError, match=message):

@@ -56,11 +56,16 @@ def mesh_filename(mesh_path, output):
 @click.option("--spp", type=int, default=16, show_default=True, help="Samples per pixel of the scene's sampler.")
 @click.option("--object-only", is_flag=True,
               help="Write only the object's <shape> element (medium and BSDF inside), to paste into your own scene.")
+@click.option("--volume", type=click.Path(dir_okay=False),
+              help="A Mitsuba grid volume file (.vol, e.g. written by mitsuba.VolumeGrid(array).write) of the albedo, "
+                   "1 or 3 channels in [0, 1]: the interior is then a heterogeneous medium of the material's "
+                   "extinction and this albedo, the grid stretched over the object's bounding box (z, y, x cells "
+                   "along the scene's axes, y up); the material's own albedo is not used.")
 @click.option("--id", "shape_id",
               help="The object's id (its name in `convsss render --profile ID=...` and the stats). Default: the mesh "
                    "file's name without extension.")
 def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boundary, unit_mm, floor, width, height,
-          spp, object_only, shape_id):
+          spp, object_only, volume, shape_id):
     """Write a scene with a translucent object made of a preset material (or of --color and --mfp-mm, inverted to
     coefficients under --color-model), scaled to --size-mm.
 
@@ -78,6 +83,7 @@ def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boun
       convsss scene --material wholemilk --size-mm 40 --boundary null -o milk.xml
       convsss scene --mesh dragon.ply --material marble --size-mm 100 --object-only
       convsss scene --color 0.8,0.5,0.4 --mfp-mm 2 --size-mm 40 -o colour.xml
+      convsss scene --mesh cube.obj --material marble --size-mm 30 --volume veins.vol -o veined.xml
     """
     from ..scene.quick import demo_mesh, quick_scene
     from ..scene.xmlwriter import object_to_xml, scene_to_xml
@@ -85,11 +91,18 @@ def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boun
     mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)
     name = object_id(mesh_path, shape_id)
     if output:
-        check_outputs([output], [mesh_path])
+        check_outputs([output], [mesh_path] + ([volume] if volume else []))
     made = source_material(material, color, mfp_mm, eta, color_model, boundary)
     if made is None:
         raise ConvsssError("no material: give --material NAME, or --color and --mfp-mm")
-    scene_dict = quick_scene(mesh_path, made, size_mm, width, height, spp, floor, boundary, unit_mm)
+    if volume is not None:
+        from ..backend import load_mitsuba
+        from ..scene.media import check_albedo_grid
+
+        load_mitsuba()
+        check_albedo_grid(volume)
+    scene_dict = quick_scene(mesh_path, made, size_mm, width, height, spp, floor, boundary, unit_mm,
+                             albedo_volume=None if volume is None else mesh_filename(volume, output))
     shape = {**scene_dict["object"], "filename": mesh_filename(mesh_path, output)}
     if object_only:
         text = object_to_xml(name, shape)

@@ -21,7 +21,6 @@ import io
 import threading
 import time
 import warnings
-from dataclasses import replace
 
 import numpy as np
 
@@ -274,7 +273,7 @@ class EditSession:
             self.integrator.params = self._with(params, profile=spec)
             self.integrator.prepare(self.scene, self.sensor, self.seed)  # reads the material from the scene
         else:
-            self.integrator.retransport([replace(o, material=material, profile=profile)
+            self.integrator.retransport([o.with_material(material, profile)
                                          if o.shape is self.target.shape else o for o in self.objects], params)
         self.target = self._pick(self.objects, self.target.name)
         self._profile_png = None

@@ -134,15 +134,12 @@ class Profile:
         f = float(f)
         if not 0.0 <= f <= 1.0:
             raise ConvsssError(f"energy fraction f={f!r} is not allowed: it must lie in [0, 1]")
-        total = self.total_reflectance
-        hi = self._search_range()
-        if f == 0.0:
-            return hi
-        # energy_within increases; bisect on its negation, which decreases.
-        def deficit(r):
-            return -np.diagonal(self.energy_within(r))
-
-        return _bisect_decreasing(deficit, -(1.0 - f) * total, np.zeros(3), hi)
+        known = self.__dict__.setdefault("_radius_energy", {})  # a profile does not change: bisect once per f
+        if f not in known:
+            known[f] = self._search_range() if f == 0.0 else _bisect_decreasing(
+                lambda r: -np.diagonal(self.energy_within(r)),  # energy_within increases: its negation decreases
+                -(1.0 - f) * self.total_reflectance, np.zeros(3), self._search_range())
+        return known[f].copy()
 
 
 class ScaledProfile(Profile):

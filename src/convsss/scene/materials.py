@@ -60,6 +60,20 @@ def medium_dict(material, unit_mm=1.0):
     }
 
 
+def albedo_volume_dict(material, albedo_filename, to_world, unit_mm=1.0):
+    """A Mitsuba ``heterogeneous`` medium of ``material``'s extinction whose albedo is the ``gridvolume`` file
+    ``albedo_filename`` (1 or 3 channels in [0, 1]), both volumes placed by ``to_world`` (the unit cube's image: it
+    must hold the object). Isotropic phase."""
+    p = medium_parameters(material, unit_mm)
+    return {
+        "type": "heterogeneous",
+        "albedo": {"type": "gridvolume", "filename": str(albedo_filename), "to_world": to_world},
+        "sigma_t": {"type": "constvolume", "value": {"type": "rgb", "value": [float(x) for x in p["sigma_t"]]},
+                    "to_world": to_world},
+        "scale": p["scale"],
+    }
+
+
 def boundary_dict(boundary, eta, alpha=0.1):
     """The BSDF of the object's surface: ``null``, ``dielectric`` or ``roughdielectric`` (roughness ``alpha``)."""
     if boundary == "null":

@@ -18,7 +18,7 @@ instancing, so one level is all there is.
 
 import re
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -90,6 +90,11 @@ class TranslucentObject:
     def profiles(self):
         """Every profile the object's light spreads with: its classes' (a heterogeneous interior), or its one."""
         return self.class_profiles or (self.profile,)
+
+    def with_material(self, material, profile):
+        """This object made of one homogeneous ``material`` spreading light by ``profile`` (what the editor and
+        :func:`convsss.fit` try; a heterogeneous interior's classes are dropped)."""
+        return replace(self, material=material, profile=profile, classes=None, class_profiles=())
 
     def hit(self, shapes, instances):
         """Which lanes hit this object, from the per-lane registry indices of :func:`hit_indices`.
@@ -163,10 +168,11 @@ def interior_material(mi, medium, eta, unit_mm, name, shape, to_world, orientati
     if medium.class_name() == "HomogeneousMedium":
         return medium_material(mi, medium, eta, unit_mm, name), None
     field = MediumField(medium, unit_mm, _phase_g(mi.traverse(medium)), name)
-    position, _, _ = sample_surface(shape, SURVEY_POINTS, seed=0, orientation=orientation, to_world=to_world)
-    survey = np.asarray(position, dtype=np.float64).reshape(3, -1).T * unit_mm
+    position, normal, _ = sample_surface(shape, SURVEY_POINTS, seed=0, orientation=orientation, to_world=to_world)
+    survey, normal = (np.asarray(a, dtype=np.float64).reshape(3, -1).T for a in (position, normal))
+    survey = survey * unit_mm
     field.check(survey, bbox_mm)
-    classes = medium_classes(field, survey, eta)
+    classes = medium_classes(field, survey, normal, eta)
     if isinstance(classes, Material):
         return classes, None
     return classes.mean, classes

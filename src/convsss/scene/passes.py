@@ -33,7 +33,7 @@ def build_transports(samples, irradiance, objects, cells, frame, params, stage=N
         lit = IrradianceSamples(s.position, s.area, e, s.normal)
         with stage("transport"):
             out.append(make(lit, obj.profile) if obj.classes is None else
-                       MixtureTransport(lit, obj.class_profiles, obj.classes.weights(s.position), make))
+                       MixtureTransport(lit, obj.class_profiles, obj.classes.weights(s.position, s.normal), make))
     return out
 
 

@@ -20,10 +20,12 @@ import numpy as np
 
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
-from .materials import translucent
+from .materials import albedo_volume_dict, translucent
 
 MESH_TYPES = {".obj": "obj", ".ply": "ply", ".serialized": "serialized"}
 FOV_DEG = 30.0
+#: An albedo volume's box beyond the object's, each side, as a fraction of the object's size.
+VOLUME_MARGIN = 0.01
 
 
 def demo_mesh():
@@ -83,7 +85,7 @@ def _look_at(origin, target, up=(0.0, 1.0, 0.0)):
 
 
 def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=False, boundary="dielectric",
-                unit_mm=1.0, integrator=None):
+                unit_mm=1.0, integrator=None, albedo_volume=None):
     """The scene dictionary described in the module docstring.
 
     Parameters
@@ -105,6 +107,10 @@ def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=Fa
     integrator : dict, optional
         The scene's integrator (default: ``volpathmis`` without Russian roulette, so the scene is its own
         ground truth in plain Mitsuba).
+    albedo_volume : str, optional
+        A ``gridvolume`` file of the albedo (1 or 3 channels): the interior is then a ``heterogeneous`` medium of
+        ``material``'s extinction and this albedo, the grid stretched over the object's bounding box (grown by
+        :data:`VOLUME_MARGIN` of its size each side).
     """
     size_mm = float(size_mm)
     if not math.isfinite(size_mm) or size_mm <= 0:
@@ -146,6 +152,11 @@ def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=Fa
         "key_light": {"type": "point", "position": key.tolist(), "intensity": intensity(key, 1.0)},
         "back_light": {"type": "point", "position": back.tolist(), "intensity": intensity(back, 3.0)},
     }
+    if albedo_volume is not None:
+        margin = VOLUME_MARGIN * 2 * float(np.max(half))
+        box = np.diag([*(2 * half + 2 * margin), 1.0])
+        box[:3, 3] = [-half[0] - margin, -margin, -half[2] - margin]
+        scene["object"]["interior"] = albedo_volume_dict(material, albedo_volume, _matrix(box), unit_mm)
     if floor:
         scene["floor"] = {
             "type": "rectangle",

@@ -1,7 +1,7 @@
 """Scene dictionaries (Mitsuba's ``load_dict`` form) written as Mitsuba 3 XML scene files.
 
 Covers what the scenes of this package use: nested plugins (shape, bsdf, medium, phase, emitter, sensor, film,
-sampler, rfilter, integrator, texture), ``rgb`` values, numbers, booleans, strings, 3-vectors and transforms.
+sampler, rfilter, integrator, texture, volume), ``rgb`` values, numbers, booleans, strings, 3-vectors and transforms.
 """
 
 from xml.sax.saxutils import quoteattr
@@ -17,6 +17,7 @@ NESTED = {"integrator": "integrator", "sensor": "sensor", "film": "film", "sampl
 #: Plugin category of a top-level object, by its type.
 SHAPES = {"obj", "ply", "serialized", "sphere", "cube", "rectangle", "disk", "cylinder", "shapegroup", "instance"}
 EMITTERS = {"point", "spot", "directional", "constant", "envmap", "area", "projector", "directionalarea"}
+VOLUMES = {"gridvolume", "constvolume"}
 POINT_KEYS = {"position", "origin", "target", "center"}
 
 
@@ -41,6 +42,8 @@ def _category(key, value, top_level):
         return "emitter"
     if kind == "rgb" or kind == "spectrum":
         return None
+    if kind in VOLUMES:
+        return "volume"
     if not top_level:
         return "texture"
     raise ConvsssError(f"cannot write scene object {key!r} of type {kind!r} as XML")
@@ -53,7 +56,7 @@ def _element(key, value, indent, top_level=False):
             return [f'{pad}<rgb name={quoteattr(key)} value="{_numbers(np.ravel(value["value"]))}"/>']
         tag = _category(key, value, top_level)
         attrs = f'type={quoteattr(value["type"])}'
-        if tag == "medium":
+        if tag in ("medium", "volume"):
             attrs += f" name={quoteattr(key)}"
         elif top_level and tag in ("shape", "emitter"):
             attrs += f" id={quoteattr(key)}"

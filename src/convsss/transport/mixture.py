@@ -17,7 +17,7 @@ by neither end, so light crosses it as if it were not there.
 
 import numpy as np
 
-from ..samples import IrradianceSamples, LocalIrradiance
+from ..samples import IrradianceSamples, LocalIrradiance, as_points
 from ..timing import StageTimer
 
 #: ``s`` of Eq. H1: the share of the exitance spread by the entry points' classes.
@@ -42,8 +42,7 @@ class MixtureTransport:
         self.timings = StageTimer()
         self.members = [np.flatnonzero(weights[:, k, :].max(axis=1) > SMALL_WEIGHT * weights[:, k, :].max())
                         for k in range(len(self.profiles))]
-        self.local = [LocalIrradiance(IrradianceSamples(samples.position, samples.area, weights[:, k, :],
-                                                        samples.normal)) for k in range(len(self.profiles))]
+        self.local = LocalIrradiance(samples)
         self._build()
 
     def _build(self):
@@ -60,14 +59,19 @@ class MixtureTransport:
 
     def exitance(self, points, normals=None):
         """``M`` (K, 3) of Eq. H1 at ``points`` (K, 3) mm (``normals``: their outward normals, optional)."""
+        points = as_points(points, "query points")
+        normals = None if normals is None else as_points(normals, "normals")
         out = np.zeros((len(points), 3))
+        if SOURCE_SHARE < 1:
+            with self.timings("class weights"):
+                weight = self.local.average(self.weights, points, normals)  # (K, classes, 3)
         for k, (entering, leaving) in enumerate(zip(self.entering, self.leaving)):
             if entering is not None:
                 out += SOURCE_SHARE * entering.exitance(points, normals)
-            if leaving is not None:
-                with self.timings("class weights"):
-                    weight = self.local[k](points, normals)
-                out += (1.0 - SOURCE_SHARE) * weight * leaving.exitance(points, normals)
+            rows = np.flatnonzero(weight[:, k].max(axis=1) > 0) if leaving is not None else ()
+            if len(rows):  # only where the class is present: a point lies between two classes per channel
+                out[rows] += (1.0 - SOURCE_SHARE) * weight[rows, k] * leaving.exitance(
+                    points[rows], None if normals is None else normals[rows])
         return out
 
     def relit(self, irradiance):
