@@ -12,7 +12,7 @@ from convsss.scene.materials import medium_parameters, translucent
 from convsss.scene.objects import find_translucent_objects
 
 #: The spheres' radius (mm): several diffusion lengths of skin1 (at most 3.7 mm), so that the column under a
-#: surface point (Eq. H2, three diffusion lengths) stays in its half of a sphere of two halves.
+#: surface point (Eq. H2, two diffusion lengths) stays in its half of a sphere of two halves.
 RADIUS = 20.0
 
 
@@ -57,7 +57,7 @@ def test_a_constant_volume_is_the_homogeneous_medium(mi, tmp_path):
 def test_two_media_make_classes_from_one_to_the_other(mi, tmp_path):
     skin, marble = convsss.material("skin1"), convsss.material("marble")
     scale = medium_parameters(skin)["scale"]
-    radius = 4 * RADIUS  # the columns (three diffusion lengths of marble's albedo, up to 25 mm) within their half
+    radius = 4 * RADIUS  # the columns (two diffusion lengths of marble's albedo, up to 17 mm) within their half
     grid = _grid(mi, tmp_path / "albedo.vol", _halves(skin, marble))
     volume = _volume(mi, grid, radius)
     sigma_t = {"type": "constvolume", "value": {"type": "rgb", "value": (skin.sigma_t_prime / scale).tolist()},
@@ -152,20 +152,20 @@ def test_renders_of_a_constant_and_a_varying_volume(mi, sphere_scene, tmp_path):
 
 
 def test_the_column_under_a_point_reaches_the_medium_below(mi, tmp_path):
-    """Eq. H2 on a flat top face over two layers: a dark top a diffusion length thick over a light body reads well
-    between them; a thick one reads as the top, none as the body."""
+    """Eq. H2 on a flat top face over two layers: a dark top half a diffusion length thick over a light body reads
+    well between them; a thick one reads as the top, none as the body."""
     from convsss.scene.media import MediumField
 
-    n = 64  # cells along y over [0, 64) mm: the top face at y = 64, a layer of `top` mm under it
+    n, side = 128, 64.0  # cells of 0.5 mm over [0, 64) mm; the top face at y = 64, a layer of `top_mm` under it
     def column(top_mm):
         albedo = np.full((n, n, n, 1), 0.999)
-        albedo[:, n - int(top_mm):, :] = 0.9  # (z, y, x): the cells of y above 64 - top_mm
+        albedo[:, n - int(round(top_mm * n / side)):, :] = 0.9  # (z, y, x): the cells above y = 64 - top_mm
         grid = _grid(mi, tmp_path / f"layers{top_mm}.vol", albedo)
         medium = mi.load_dict({"type": "heterogeneous", "scale": 2.0,
                                "albedo": {"type": "gridvolume", "filename": grid,
-                                          "to_world": mi.ScalarTransform4f().scale(float(n))},
+                                          "to_world": mi.ScalarTransform4f().scale(side)},
                                "sigma_t": {"type": "constvolume", "value": 1.0,
-                                           "to_world": mi.ScalarTransform4f().scale(float(n))}})
+                                           "to_world": mi.ScalarTransform4f().scale(side)}})
         field = MediumField(medium, 1.0, 0.0, "layers")
         point, up = np.array([[32.0, 63.999, 32.0]]), np.array([[0.0, 1.0, 0.0]])
         return field.coefficients(point)[1][0, 0], field.column_coefficients(point, up)[1][0, 0]
@@ -173,6 +173,6 @@ def test_the_column_under_a_point_reaches_the_medium_below(mi, tmp_path):
     dark, light = 2.0 * 0.1, 2.0 * 0.001  # sigma_a of the two layers (1/mm)
     surface, thick = column(48)
     assert surface == pytest.approx(dark, rel=1e-4) and thick == pytest.approx(dark, rel=1e-4)
-    surface, thin = column(1)
+    surface, thin = column(0.5)
     assert surface == pytest.approx(dark, rel=1e-4) and 10 * light < thin < 0.8 * dark
     assert column(0)[1] == pytest.approx(light, rel=1e-4)

@@ -144,6 +144,40 @@ def bench_fit_command(cases, width, reference_spp, as_json, progress):
     click.echo(json.dumps(rows, indent=1) if as_json else fit_table(rows))
 
 
+@bench.command("media")
+@click.option("--scene", "scenes", multiple=True,
+              type=click.Choice(["veins-block", "veins-bunny", "milk-skin-sphere", "skin-over-milk",
+                                 "constant-block"]),
+              help="A scene (repeat for several) [default: all]: a marble block and a 20 mm marble bunny with dark "
+                   "gridvolume veins, a 20 mm sphere fading from whole milk to skin1, a sphere of 1.5 mm of skin1 "
+                   "over whole milk, and the block with a constant albedo volume (against the homogeneous block, "
+                   "pixel for pixel).")
+@click.option("--width", type=click.IntRange(16, 4096), default=128, show_default=True,
+              help="Image width and height (square).")
+@click.option("--reference-spp", type=click.IntRange(1), default=512, show_default=True,
+              help="Samples per pixel of the two volpathmis references (seeds 1 and 2).")
+@click.option("--runs", type=click.IntRange(1), default=3, show_default=True,
+              help="Fresh render commands per scene and per homogeneous twin (the medians are reported).")
+@click.option("--folder", type=click.Path(file_okay=False),
+              help="Keep the scenes, volumes, renders and references here; references already there at the same "
+                   "spp and size are reused. [default: a temporary folder]")
+@click.option("--json", "as_json", is_flag=True, help="Print {meta, rows} as JSON instead of the table.")
+@PROGRESS
+def bench_media_command(scenes, width, reference_spp, runs, folder, as_json, progress):
+    """Heterogeneous interiors against path tracing, and their cost against the homogeneous object.
+
+    Per scene, as commands in fresh processes on one scene file: two volpathmis references, and convsss render of
+    the scene and of its homogeneous twin (same object, one homogeneous medium), --runs times each. Printed per
+    scene: the classes and samples, the medians and their ratio, per channel the ratio of the object's mean to the
+    reference's, the mean relative error beside the second reference's (the reference's own noise), and the
+    relative MSE less the reference's noise beside that noise.
+    """
+    from ..bench.media import MEDIA_SCENES, bench_media, media_table
+
+    result = bench_media(scenes or MEDIA_SCENES, width, reference_spp, runs, folder, progress)
+    click.echo(json.dumps(result, indent=1) if as_json else media_table(result))
+
+
 @bench.command("volpath")
 @click.option("--scene", "scenes", multiple=True, type=click.Choice(["milk40", "marble40", "skin40", "ketchup40",
                                                                       "milk40-area"]),

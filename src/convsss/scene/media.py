@@ -6,10 +6,12 @@ Mitsuba evaluates the coefficients (``Medium.get_scattering_coefficients``) wher
 
 * **The column under a surface point** (:meth:`MediumField.column_coefficients`). Light entering at a point diffuses
   through the medium under it, down to a few diffusion lengths ``l``; what it meets there (a dark vein below a light
-  surface, a dense core under a thin skin) absorbs it as much as what lies at the surface. So a surface point
-  stands for the mean of the reduced coefficients along its inward normal,
+  surface, a dense core under a thin skin) absorbs it as much as what lies at the surface. To first order, a change
+  of the coefficients at depth ``z`` changes the exitance by the product of the diffuse fluence coming from the
+  entry and of its adjoint going to the exit, ``exp(-z/l)`` each on a half-space; so a surface point stands for the
+  mean of the reduced coefficients along its inward normal ``n`` weighted by that product,
 
-      sigma(x) = int_0^{3l} sigma(x - z n) exp(-z/l) dz / int_0^{3l} exp(-z/l) dz,                        (Eq. H2)
+      sigma(x) = int_0^{2l} sigma(x - z n) exp(-2z/l) dz / int_0^{2l} exp(-2z/l) dz,                     (Eq. H2)
 
   per channel, ``l = 1/sqrt(3 sigma_a sigma_t')`` from the column's own mean (two rounds, the first from the
   surface's values), sampled at :data:`DEPTHS` depths and counting only the medium's box. For a homogeneous medium
@@ -53,7 +55,7 @@ ABSORPTION_FLOOR = 1e-6
 #: Depths per column, the column's length in diffusion lengths, and its longest in mm (a channel without absorption
 #: has an unbounded diffusion length).
 DEPTHS = 8
-COLUMN = 3.0
+COLUMN = 2.0
 COLUMN_CAP_MM = 1e3
 #: Surface points per round of :meth:`MediumField.column_coefficients` (``DEPTHS`` Mitsuba lookups each).
 CHUNK = 1 << 15
@@ -128,7 +130,7 @@ class MediumField:
 
     def column_coefficients(self, points_mm, normals):
         """``(sigma_s', sigma_a)`` (N, 3) each, 1/mm: the mean over the column of medium under each surface point
-        (``normals`` (N, 3) outward) that its diffuse light explores, weighted ``exp(-z/l)`` in depth ``z`` up to
+        (``normals`` (N, 3) outward) that its diffuse light explores, weighted ``exp(-2z/l)`` in depth ``z`` up to
         :data:`COLUMN` diffusion lengths ``l`` of each channel (Eq. H2), ``l`` from the column's own mean (two
         rounds, the first from the surface's coefficients). Depths beyond the medium's box do not count."""
         points_mm, normals = (np.asarray(a, dtype=np.float64).reshape(-1, 3) for a in (points_mm, normals))
@@ -149,7 +151,7 @@ class MediumField:
             depth = COLUMN * length.max(axis=1, keepdims=True) * steps  # (N, DEPTHS): one column for the channels
             at = (points_mm[:, None, :] - normals[:, None, :] * depth[..., None]).reshape(-1, 3)
             s_at, a_at = (a.reshape(len(points_mm), DEPTHS, 3) for a in self.coefficients(at))
-            weight = np.exp(-depth[..., None] / length[:, None, :]) * (depth <= reach)[..., None]
+            weight = np.exp(-2.0 * depth[..., None] / length[:, None, :]) * (depth <= reach)[..., None]  # Eq. H2
             total = weight.sum(axis=1)  # (N, 3)
             seen = total > 0
             sigma_s_prime, sigma_a = (np.where(seen, np.einsum("njc,njc->nc", weight, a) / np.where(seen, total, 1.0),
@@ -199,10 +201,12 @@ class MediumField:
 
     def check(self, survey_mm, bbox_mm):
         """:meth:`check_cover` on the surface points ``survey_mm``, :meth:`check_values` on them and on a lattice of
-        the object's box ``bbox_mm`` (its points inside the medium)."""
+        the object's box ``bbox_mm`` (its points inside the medium); returns the points checked."""
         self.check_cover(survey_mm)
         grid = lattice(bbox_mm)
-        self.check_values(np.concatenate([survey_mm, grid[self.inside(grid)]]))
+        checked = np.concatenate([survey_mm, grid[self.inside(grid)]])
+        self.check_values(checked)
+        return checked
 
 def check_albedo_grid(path):
     """A one-line error unless ``path`` is a Mitsuba grid volume file of 1 or 3 channels of finite values in [0, 1]
@@ -282,10 +286,11 @@ class MediumClasses:
         return out
 
 
-def medium_classes(field, survey_mm, normals, eta):
+def medium_classes(field, survey_mm, normals, eta, inside_mm=()):
     """The classes of ``field`` over the surface points ``survey_mm`` (N, 3) of outward ``normals`` (module
-    docstring): a :class:`MediumClasses`, or the one :class:`Material` where the coefficients do not vary there."""
-    constant = field.constant(survey_mm, eta)
+    docstring): a :class:`MediumClasses`, or the one :class:`Material` where the coefficients do not vary there nor
+    at the points ``inside_mm`` (M, 3) (a constant surface over another core is not homogeneous)."""
+    constant = field.constant(np.concatenate([survey_mm, np.reshape(inside_mm, (-1, 3))]), eta)
     if constant is not None:
         return constant
     sigma_s_prime, sigma_a = field.column_coefficients(survey_mm, normals)

@@ -171,8 +171,8 @@ def interior_material(mi, medium, eta, unit_mm, name, shape, to_world, orientati
     position, normal, _ = sample_surface(shape, SURVEY_POINTS, seed=0, orientation=orientation, to_world=to_world)
     survey, normal = (np.asarray(a, dtype=np.float64).reshape(3, -1).T for a in (position, normal))
     survey = survey * unit_mm
-    field.check(survey, bbox_mm)
-    classes = medium_classes(field, survey, normal, eta)
+    checked = field.check(survey, bbox_mm)
+    classes = medium_classes(field, survey, normal, eta, checked)
     if isinstance(classes, Material):
         return classes, None
     return classes.mean, classes
