@@ -1,7 +1,7 @@
-"""Translucent objects of a loaded Mitsuba scene: shape + boundary BSDF + interior homogeneous medium -> Material.
+"""Translucent objects of a loaded Mitsuba scene: shape + boundary BSDF + interior medium -> Material.
 
-Convention (docs/architecture.md): a shape is translucent when its ``interior`` is a ``homogeneous`` medium and its
-BSDF is ``null`` (``eta = 1``), ``dielectric`` or ``roughdielectric`` (``eta = int_ior / ext_ior``, must be >= 1). The
+Convention (docs/architecture.md): a shape is translucent when its ``interior`` is a ``homogeneous`` medium (or a
+``heterogeneous`` one: :mod:`.media` makes its classes) and its BSDF is ``null`` (``eta = 1``), ``dielectric`` or ``roughdielectric`` (``eta = int_ior / ext_ior``, must be >= 1). The
 medium's coefficients are per scene unit; with ``u`` mm per unit,
 
     sigma_t [1/mm] = scale * sigma_t / u,   sigma_s = albedo * sigma_t,   sigma_a = sigma_t - sigma_s,
@@ -142,8 +142,8 @@ def _shape_name(shape, k):
 def _rgb(params, key, what, name):
     """An RGB triple of a constant volume parameter, or a one-line error for a spatially varying one."""
     if key not in params:
-        raise ConvsssError(f"translucent shape {name!r}: the medium's {what} varies in space; "
-                           "only constant values are supported (a homogeneous medium with rgb or float values)")
+        raise ConvsssError(f"translucent shape {name!r}: its homogeneous medium's {what} varies in space; give it "
+                           "rgb or float values, or make the medium heterogeneous (its volumes as sigma_t, albedo)")
     value = np.asarray(params[key], dtype=np.float64).reshape(-1)
     return np.broadcast_to(value, (3,)).copy() if value.size in (1, 3) else value[:3]
 

@@ -66,10 +66,10 @@ class MixtureTransport:
             with self.timings("class weights"):
                 weight = self.local.average(self.weights, points, normals)  # (K, classes, 3)
         for k, (entering, leaving) in enumerate(zip(self.entering, self.leaving)):
-            if entering is not None:
+            if entering is not None:  # Eq. H1, first sum: light spread by the entry points' classes
                 out += SOURCE_SHARE * entering.exitance(points, normals)
             rows = np.flatnonzero(weight[:, k].max(axis=1) > 0) if leaving is not None else ()
-            if len(rows):  # only where the class is present: a point lies between two classes per channel
+            if len(rows):  # Eq. H1, second sum, where the exit point has the class (two per channel at most)
                 out[rows] += (1.0 - SOURCE_SHARE) * weight[rows, k] * leaving.exitance(
                     points[rows], None if normals is None else normals[rows])
         return out
