@@ -150,3 +150,21 @@ def test_json_values_of_the_wrong_type_are_refused(session):
         with pytest.raises(ConvsssError, match="is not allowed"):
             s.update(**changes)
     assert s.state() == state
+
+
+def test_a_heterogeneous_interior_is_refused_in_one_line(mi, sphere_scene, tmp_path):
+    from convsss.editor import EditSession
+    from convsss.scene.loading import load_scene
+
+    x = (np.arange(8) + 0.5) / 8
+    mi.VolumeGrid(np.where(x < 0.5, 0.9, 0.99)[None, None, :, None].repeat(8, 0).repeat(8, 1).astype(np.float32)
+                  ).write(str(tmp_path / "halves.vol"))
+    scene = sphere_scene(res=16, spp=1)
+    box = mi.ScalarTransform4f().translate([-2.2] * 3).scale(4.4)
+    scene["object"]["interior"] = {"type": "heterogeneous", "scale": 2.0,
+                                   "albedo": {"type": "gridvolume", "filename": str(tmp_path / "halves.vol"),
+                                              "to_world": box},
+                                   "sigma_t": {"type": "constvolume", "value": 1.0, "to_world": box}}
+    with pytest.raises(ConvsssError, match="heterogeneous interior") as info:
+        EditSession(load_scene(scene))
+    assert "\n" not in str(info.value)

@@ -11,8 +11,8 @@ from convsss.materials import Material
 from convsss.scene.materials import medium_parameters, translucent
 from convsss.scene.objects import find_translucent_objects
 
-#: The spheres' radius (mm): several diffusion lengths of skin1 (at most 3.7 mm), so that the column under a
-#: surface point (Eq. H2, two diffusion lengths) stays in its half of a sphere of two halves.
+#: The spheres' radius (mm): several diffusion lengths of skin1 (at most 3.7 mm), so that the medium a surface point
+#: stands for (Eq. H2, within two diffusion lengths) lies in its half of a sphere of two halves.
 RADIUS = 20.0
 
 
@@ -57,7 +57,7 @@ def test_a_constant_volume_is_the_homogeneous_medium(mi, tmp_path):
 def test_two_media_make_classes_from_one_to_the_other(mi, tmp_path):
     skin, marble = convsss.material("skin1"), convsss.material("marble")
     scale = medium_parameters(skin)["scale"]
-    radius = 4 * RADIUS  # the columns (two diffusion lengths of marble's albedo, up to 17 mm) within their half
+    radius = 4 * RADIUS  # Eq. H2's reach (two diffusion lengths of marble's albedo, up to 17 mm) within its half
     grid = _grid(mi, tmp_path / "albedo.vol", _halves(skin, marble))
     volume = _volume(mi, grid, radius)
     sigma_t = {"type": "constvolume", "value": {"type": "rgb", "value": (skin.sigma_t_prime / scale).tolist()},
@@ -70,8 +70,8 @@ def test_two_media_make_classes_from_one_to_the_other(mi, tmp_path):
     marble_albedo = Material(skin.sigma_t_prime * marble.sigma_s_prime / marble.sigma_t_prime,
                              skin.sigma_t_prime * marble.sigma_a / marble.sigma_t_prime, 1.0)
     darker, lighter = sorted([classes.materials[0], classes.materials[-1]], key=lambda m: -m.sigma_a[0])
-    for end, medium in ((darker, skin), (lighter, marble_albedo)):
-        np.testing.assert_allclose(end.sigma_a, medium.sigma_a, rtol=0.02)
+    for end, medium in ((darker, skin), (lighter, marble_albedo)):  # an end class is the mean of the points near
+        np.testing.assert_allclose(end.sigma_a, medium.sigma_a, rtol=0.05)  # it, a few within reach of the seam
         np.testing.assert_allclose(end.sigma_t_prime, skin.sigma_t_prime, rtol=1e-5)
     points = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.99, 0.14]]) * radius
     weights = classes.weights(points, points / np.linalg.norm(points, axis=1, keepdims=True))
@@ -151,13 +151,13 @@ def test_renders_of_a_constant_and_a_varying_volume(mi, sphere_scene, tmp_path):
     assert gain > 1.3 and ratio[1] - ratio[0] > 0.5 * (gain - 1)
 
 
-def test_the_column_under_a_point_reaches_the_medium_below(mi, tmp_path):
+def test_a_surface_point_stands_for_the_medium_below(mi, tmp_path):
     """Eq. H2 on a flat top face over two layers: a dark top half a diffusion length thick over a light body reads
     well between them; a thick one reads as the top, none as the body."""
     from convsss.scene.media import MediumField
 
     n, side = 128, 64.0  # cells of 0.5 mm over [0, 64) mm; the top face at y = 64, a layer of `top_mm` under it
-    def column(top_mm):
+    def explored(top_mm):
         albedo = np.full((n, n, n, 1), 0.999)
         albedo[:, n - int(round(top_mm * n / side)):, :] = 0.9  # (z, y, x): the cells above y = 64 - top_mm
         grid = _grid(mi, tmp_path / f"layers{top_mm}.vol", albedo)
@@ -168,11 +168,11 @@ def test_the_column_under_a_point_reaches_the_medium_below(mi, tmp_path):
                                            "to_world": mi.ScalarTransform4f().scale(side)}})
         field = MediumField(medium, 1.0, 0.0, "layers")
         point, up = np.array([[32.0, 63.999, 32.0]]), np.array([[0.0, 1.0, 0.0]])
-        return field.coefficients(point)[1][0, 0], field.column_coefficients(point, up)[1][0, 0]
+        return field.coefficients(point)[1][0, 0], field.explored_coefficients(point, up)[1][0, 0]
 
     dark, light = 2.0 * 0.1, 2.0 * 0.001  # sigma_a of the two layers (1/mm)
-    surface, thick = column(48)
+    surface, thick = explored(48)
     assert surface == pytest.approx(dark, rel=1e-4) and thick == pytest.approx(dark, rel=1e-4)
-    surface, thin = column(0.5)
+    surface, thin = explored(0.5)
     assert surface == pytest.approx(dark, rel=1e-4) and 10 * light < thin < 0.8 * dark
-    assert column(0)[1] == pytest.approx(light, rel=1e-4)
+    assert explored(0)[1] == pytest.approx(light, rel=1e-4)

@@ -140,6 +140,7 @@ def test_the_example_scene_names_a_preset_and_a_colour(mi):
     ({"color": 0.5, "mfp_mm": 0.0}, "mfp_mm=[0.0, 0.0, 0.0] is not allowed: it must be finite and > 0"),
     ({"color": 0.5, "mfp_mm": [1.0, -1.0, 1.0]}, "it must be finite and > 0"),
     ({"color": "0.5,0.4", "mfp_mm": 1.0}, "give one number or three"),
+    ({"color": {"type": "checkerboard"}, "mfp_mm": 1.0}, "color as a Checkerboard texture is not supported"),
     ({"color": 0.5}, "color without mfp_mm"),
     ({"preset": "skin1", "sigma_t": 1.0}, "a preset and coefficients (sigma_t) given"),
     ({"color": 0.5, "mfp_mm": 1.0, "scale": 2.0}, "color + mfp_mm and coefficients (scale) given"),

@@ -10,7 +10,10 @@ volumes, written here):
 3. errors over the object's pixels (the render's mask AOV) against the first reference with
    :func:`convsss.compare.metrics`: per channel the ratio of the means, the mean relative error beside the second
    reference's (the reference's own noise in the same metric), and the relative MSE less the reference's own noise
-   (half the relative MSE between the two references) beside that noise.
+   (half the relative MSE between the two references) beside that noise;
+4. the twin's render against the twin's own reference (seed 1): its ratio of the means is what the homogeneous
+   model gets wrong on that shape and light, and the scene's ratio over the twin's (``medium_ratio``) what the
+   medium's variation adds.
 
 Scenes (null boundary, the key and back point lights of :func:`~convsss.scene.quick.quick_scene`):
 
@@ -136,7 +139,8 @@ def scene_pair(name, width, folder):
 
 def bench_media_scene(name, width, folder, reference_spp=REFERENCE_SPP, runs=3, bar=None):
     """One row (module docstring): ``{scene, width, classes, samples, convsss_s, twin_s, cost_ratio, mean_ratio,
-    mean_rel_error, reference_mean_rel_error, relmse_excess, reference_noise, identical}``."""
+    twin_mean_ratio, medium_ratio, mean_rel_error, reference_mean_rel_error, relmse_excess, reference_noise}``, or
+    for ``constant-block`` ``{..., identical, max_rel_difference}``."""
     import json
 
     from ..compare import metrics, prepare
@@ -170,19 +174,24 @@ def bench_media_scene(name, width, folder, reference_spp=REFERENCE_SPP, runs=3, 
         row["identical"] = bool(np.array_equal(test, twin_image))
         row["max_rel_difference"] = float(np.abs(test - twin_image).max() / max(twin_image.max(), 1e-300))
         return row
-    references = []
-    for seed in (1, 2):
-        path = folder / f"ref-{name}-{width}-{reference_spp}-s{seed}.exr"
+    def reference(key, seed):
+        path = folder / f"ref-{name}-{width}-{reference_spp}-s{seed}{'-twin' if key == 'twin' else ''}.exr"
         if not path.exists():
-            _run(["reference", str(files["scene"]), "-o", str(path.with_suffix("")), "--spp", str(reference_spp),
+            _run(["reference", str(files[key]), "-o", str(path.with_suffix("")), "--spp", str(reference_spp),
                   "--seed", str(seed)])
-        references.append(_image(path)[0])
-        tick(f"reference seed {seed}")
+        tick(f"reference {key} seed {seed}")
+        return _image(path)[0]
+
+    references = [reference("scene", seed) for seed in (1, 2)]
     a, b, inside = prepare(references[0], test, mask)
     own = metrics(*prepare(references[0], references[1], mask)[:2], inside)
     found = metrics(a, b, inside)
+    twin_test, twin_mask = _image(folder / f"{name}-{width}-twin.exr")
+    twin = metrics(*prepare(reference("twin", 1), twin_test, twin_mask))
     noise = 0.5 * own["relmse"]
-    row.update({"mean_ratio": found["mean_ratio"].tolist(), "mean_rel_error": found["mean_rel_error"].tolist(),
+    row.update({"mean_ratio": found["mean_ratio"].tolist(), "twin_mean_ratio": twin["mean_ratio"].tolist(),
+                "medium_ratio": (found["mean_ratio"] / twin["mean_ratio"]).tolist(),
+                "mean_rel_error": found["mean_rel_error"].tolist(),
                 "reference_mean_rel_error": own["mean_rel_error"].tolist(),
                 "relmse_excess": (found["relmse"] - noise).tolist(), "reference_noise": noise.tolist()})
     return row
@@ -191,7 +200,7 @@ def bench_media_scene(name, width, folder, reference_spp=REFERENCE_SPP, runs=3, 
 def bench_media(scenes=MEDIA_SCENES, width=128, reference_spp=REFERENCE_SPP, runs=3, folder=None, progress=True):
     """The rows of :func:`bench_media_scene` and the machine's facts: ``{meta, rows}``; files in ``folder`` (kept, and
     its references reused) or a temporary one."""
-    bar = tqdm(total=sum(2 * runs + (0 if s == "constant-block" else 2) for s in scenes), desc="bench media",
+    bar = tqdm(total=sum(2 * runs + (0 if s == "constant-block" else 3) for s in scenes), desc="bench media",
                unit="command", disable=not progress)
     meta = {"reference_spp": reference_spp, "width": width, "runs": runs, "cpus": os.cpu_count(),
             "load_average_start": list(os.getloadavg())}
@@ -210,8 +219,8 @@ def media_table(result):
         return "/".join(f"{v:.{digits}f}" for v in values)
 
     lines = [f"{'scene':>17} {'classes':>7} {'samples':>8} {'convsss s':>9} {'twin s':>6} {'cost':>5} "
-             f"{'mean ratio R/G/B':>17} {'mean rel err':>17} {'ref own':>17} {'relMSE excess':>20} "
-             f"{'ref noise':>20}"]
+             f"{'mean ratio R/G/B':>17} {'twin ratio':>17} {'medium ratio':>17} {'mean rel err':>17} "
+             f"{'ref own':>17} {'relMSE excess':>20} {'ref noise':>20}"]
     for r in result["rows"]:
         head = (f"{r['scene']:>17} {r['classes']:>7} {r['samples']:>8} {r['convsss_s']:>9.2f} {r['twin_s']:>6.2f} "
                 f"{r['cost_ratio']:>5.2f}")
@@ -219,7 +228,8 @@ def media_table(result):
             lines.append(f"{head}  renders as the twin: {'bit for bit' if r['identical'] else 'no'} "
                          f"(largest difference {r['max_rel_difference']:.2g} of the peak)")
             continue
-        lines.append(f"{head} {rgb(r['mean_ratio']):>17} {rgb(r['mean_rel_error']):>17} "
+        lines.append(f"{head} {rgb(r['mean_ratio']):>17} {rgb(r['twin_mean_ratio']):>17} "
+                     f"{rgb(r['medium_ratio']):>17} {rgb(r['mean_rel_error']):>17} "
                      f"{rgb(r['reference_mean_rel_error']):>17} {rgb(r['relmse_excess'], 4):>20} "
                      f"{rgb(r['reference_noise'], 4):>20}")
     meta = result["meta"]

@@ -138,6 +138,9 @@ class EditSession:
             if not objects:
                 raise ConvsssError("the camera sees no translucent object to edit")
             self.target = self._pick(objects, target)
+            if self.target.classes is not None:
+                raise ConvsssError(f"translucent shape {self.target.name!r} has a heterogeneous interior: the editor "
+                                   "edits one homogeneous medium (edit its volumes in the scene file)")
             self.material, self.model = self.target.material, model_name(self.target.profile)
             self._tabulated = self.target.profile if self.model == TABULATED else None
             self._render("prepare", start)

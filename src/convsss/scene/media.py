@@ -4,34 +4,37 @@ A translucent object's interior may be a ``heterogeneous`` medium whose ``sigma_
 textures (``gridvolume``, ``constvolume``), as Mitsuba writes it, so that the same file renders with ``volpathmis``.
 Mitsuba evaluates the coefficients (``Medium.get_scattering_coefficients``) wherever convsss asks.
 
-* **The column under a surface point** (:meth:`MediumField.column_coefficients`). Light entering at a point diffuses
-  through the medium under it, down to a few diffusion lengths ``l``; what it meets there (a dark vein below a light
-  surface, a dense core under a thin skin) absorbs it as much as what lies at the surface. To first order, a change
-  of the coefficients at depth ``z`` changes the exitance by the product of the diffuse fluence coming from the
-  entry and of its adjoint going to the exit, ``exp(-z/l)`` each on a half-space; so a surface point stands for the
-  mean of the reduced coefficients along its inward normal ``n`` weighted by that product,
+* **The medium under a surface point** (:meth:`MediumField.explored_coefficients`). Light entering at a point diffuses
+  through the medium under it, a few diffusion lengths ``l`` down and across; what it meets there (a dark vein
+  below or beside a light surface, a dense core under a thin skin) absorbs it as much as what lies at the surface.
+  To first order, a change of the coefficients at a point ``y`` changes the exitance at ``x`` by the product of the
+  diffuse fluence coming from the entry and of its adjoint going to the exit; both are the half-space's Green's
+  function, about ``cos(theta) exp(-rho/l) / rho^2`` at the distance ``rho`` and the angle ``theta`` to the inward
+  normal ``n``, so per unit of ``rho`` and of solid angle the weight is ``cos^2(theta) exp(-2 rho/l)``, and a surface
+  point stands for
 
-      sigma(x) = int_0^{2l} sigma(x - z n) exp(-2z/l) dz / int_0^{2l} exp(-2z/l) dz,                     (Eq. H2)
+      sigma(x) = int_{w.n < 0} int_0^{2l} sigma(x + rho w) exp(-2 rho/l) cos^2 theta drho dw / (same of 1)  (Eq. H2)
 
-  per channel, ``l = 1/sqrt(3 sigma_a sigma_t')`` from the column's own mean (two rounds, the first from the
-  surface's values), sampled at :data:`DEPTHS` depths and counting only the medium's box. For a homogeneous medium
-  it is the medium's coefficients.
-* **The classes** (:func:`medium_classes`): over points spread on the surface, the column coefficients present. Per
+  per channel, ``l = 1/sqrt(3 sigma_a sigma_t')`` from this mean itself (two rounds, the first from the surface's
+  values), sampled at :data:`DEPTHS` points per surface point (a rank-1 lattice in distance, ``cos^3 theta`` and
+  azimuth, shifted per point) and counting only the medium's box. For a homogeneous medium it is the medium's
+  coefficients.
+* **The classes** (:func:`medium_classes`): over points spread on the surface, the explored coefficients present. Per
   channel they are points ``q = (1/2 log(1 - alpha'), log l)`` (the log of the diffusion length over the mean free
   path, and of the mean free path ``l``), which lie near one line when one thing varies (two media mixed, a colour
   map at one mean free path, one medium fading into another); the line is their principal axis. Nodes spaced
   :data:`CLASS_STEP` along it, at most :data:`MAX_CLASSES`, are the classes: node ``k`` of every channel makes the
   homogeneous :class:`~convsss.materials.Material` of class ``k``, whose profile is a model's as for any object.
-* **The samples** (:meth:`MediumClasses.weights`): each sample's column coefficients, projected on its channel's
+* **The samples** (:meth:`MediumClasses.weights`): each sample's explored coefficients, projected on its channel's
   axis, split between the two nearest nodes (hat weights, summing to 1 per channel). Light entering at a sample
   spreads with its classes' profiles, and light leaving at a point with the point's (:mod:`convsss.transport.mixture`,
   Eq. H1).
 
 A medium whose coefficients are the same wherever the survey looked is homogeneous: it renders exactly as the
 ``homogeneous`` medium of those values. What varies off the axis (two independent maps, say albedo and mean free
-path, in one channel) is read at its projection on it. The column runs along the normal, not through the object: in
-a part thinner than the column the medium beyond the far surface counts as if it were inside (the object's own
-thickness is not traced), and the profile stays a half-space's.
+path, in one channel) is read at its projection on it. Eq. H2 reads the medium's volumes, not the object: near a
+thin part or an edge, points beyond the object's surface (but within the volumes' box) count as if they were
+inside (the object's own shape is not traced there), and the profile stays a half-space's.
 """
 
 import math
@@ -52,12 +55,12 @@ CLASS_STEP = 0.4
 MAX_CLASSES = 8
 #: ``1 - alpha'`` at least this (a channel without absorption has an infinite diffusion length).
 ABSORPTION_FLOOR = 1e-6
-#: Depths per column, the column's length in diffusion lengths, and its longest in mm (a channel without absorption
-#: has an unbounded diffusion length).
-DEPTHS = 8
+#: Lookups per surface point in Eq. H2, its reach in diffusion lengths, and its longest in mm (a channel without
+#: absorption has an unbounded diffusion length).
+DEPTHS = 16
 COLUMN = 2.0
 COLUMN_CAP_MM = 1e3
-#: Surface points per round of :meth:`MediumField.column_coefficients` (``DEPTHS`` Mitsuba lookups each).
+#: Surface points per round of :meth:`MediumField.explored_coefficients` (``DEPTHS`` Mitsuba lookups each).
 CHUNK = 1 << 15
 #: Coefficients within this relative spread over the survey are one medium's (a constant volume's values read back
 #: through float32 interpolation differ in their last bits).
@@ -128,31 +131,53 @@ class MediumField:
         sigma_s, sigma_t = (a / self.unit_mm for a in self._scene_coefficients(points_mm))
         return sigma_s * (1.0 - self.g), np.maximum(sigma_t - sigma_s, 0.0)
 
-    def column_coefficients(self, points_mm, normals):
-        """``(sigma_s', sigma_a)`` (N, 3) each, 1/mm: the mean over the column of medium under each surface point
-        (``normals`` (N, 3) outward) that its diffuse light explores, weighted ``exp(-2z/l)`` in depth ``z`` up to
-        :data:`COLUMN` diffusion lengths ``l`` of each channel (Eq. H2), ``l`` from the column's own mean (two
-        rounds, the first from the surface's coefficients). Depths beyond the medium's box do not count."""
+    def explored_coefficients(self, points_mm, normals):
+        """``(sigma_s', sigma_a)`` (N, 3) each, 1/mm: the mean of the medium under each surface point (``normals``
+        (N, 3) outward) weighted as its exitance is sensitive to it (Eq. H2): ``exp(-2 rho/l)`` in the distance
+        ``rho`` up to :data:`COLUMN` diffusion lengths ``l`` of each channel, ``cos^2`` of the angle to the inward
+        normal, ``l`` from the mean itself (two rounds, the first from the surface's coefficients). Points beyond
+        the medium's box do not count."""
         points_mm, normals = (np.asarray(a, dtype=np.float64).reshape(-1, 3) for a in (points_mm, normals))
         out = np.zeros((2, len(points_mm), 3))
+        if len(points_mm) == 0:
+            return out[0], out[1]
+        box = self._box(points_mm.mean(axis=0))
         for lo in range(0, len(points_mm), CHUNK):
             part = slice(lo, lo + CHUNK)
-            out[:, part] = self._columns(points_mm[part], normals[part])
+            out[:, part] = self._explored(points_mm[part], normals[part], box, lo)
         return out[0], out[1]
 
-    def _columns(self, points_mm, normals):
-        """:meth:`column_coefficients` of a few points (the temporaries are ``DEPTHS`` times their size)."""
+    def _box(self, inside_mm):
+        """The medium's box (2, 3) in mm, from a point ``inside_mm`` (3,) within it (rays along the axes)."""
+        axes = np.concatenate([np.eye(3), -np.eye(3)])
+        _, far = self._box_exit(np.tile(inside_mm, (6, 1)), axes)
+        return np.stack([inside_mm - far[3:], inside_mm + far[:3]])
+
+    def _explored(self, points_mm, normals, box, first):
+        """:meth:`explored_coefficients` of a few points (the temporaries are ``DEPTHS`` times their size), the
+        ``first`` of them the whole set's; ``box`` the medium's box (2, 3)."""
         sigma_s_prime, sigma_a = self.coefficients(points_mm)
-        reach = self._box_exit(points_mm, -normals)[1][:, None]  # the depth at which the column leaves the box
-        steps = (np.arange(DEPTHS) + 0.5) / DEPTHS  # midpoints of equal steps in depth
+        n = len(points_mm)
+        # DEPTHS lookups per point on a rank-1 lattice in (distance, cos^2 of the angle, azimuth), shifted per point
+        j = (np.arange(DEPTHS) + 0.5) / DEPTHS
+        shift = np.stack([((first + np.arange(n)) * g) % 1.0 for g in (0.6180339887, 0.7548776662)], axis=1)
+        mu = (((j[None, :] * DEPTHS * 0.3819660113) + shift[:, :1]) % 1.0) ** (1.0 / 3.0)  # pdf 3 mu^2 on [0, 1]
+        phi = 2.0 * np.pi * (((j[None, :] * DEPTHS * 0.5698402910) + shift[:, 1:]) % 1.0)
+        tangent = np.cross(normals, np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
+        tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+        bitangent = np.cross(normals, tangent)
+        sine = np.sqrt(np.maximum(1.0 - mu**2, 0.0))
+        inward = (-mu[..., None] * normals[:, None, :] + (sine * np.cos(phi))[..., None] * tangent[:, None, :]
+                  + (sine * np.sin(phi))[..., None] * bitangent[:, None, :])  # (n, DEPTHS, 3)
         for _ in range(2):
             length = 1.0 / np.sqrt(np.maximum(3.0 * sigma_a * (sigma_s_prime + sigma_a), 1e-300))
-            length = np.minimum(length, COLUMN_CAP_MM)  # (N, 3)
-            depth = COLUMN * length.max(axis=1, keepdims=True) * steps  # (N, DEPTHS): one column for the channels
-            at = (points_mm[:, None, :] - normals[:, None, :] * depth[..., None]).reshape(-1, 3)
-            s_at, a_at = (a.reshape(len(points_mm), DEPTHS, 3) for a in self.coefficients(at))
-            weight = np.exp(-2.0 * depth[..., None] / length[:, None, :]) * (depth <= reach)[..., None]  # Eq. H2
-            total = weight.sum(axis=1)  # (N, 3)
+            length = np.minimum(length, COLUMN_CAP_MM)  # (n, 3)
+            rho = COLUMN * length.max(axis=1, keepdims=True) * j  # (n, DEPTHS): one set of lookups for the channels
+            at = points_mm[:, None, :] + inward * rho[..., None]
+            inside = np.all((at >= box[0]) & (at <= box[1]), axis=2)
+            s_at, a_at = (a.reshape(n, DEPTHS, 3) for a in self.coefficients(at.reshape(-1, 3)))
+            weight = np.exp(-2.0 * rho[..., None] / length[:, None, :]) * inside[..., None]  # Eq. H2
+            total = weight.sum(axis=1)  # (n, 3)
             seen = total > 0
             sigma_s_prime, sigma_a = (np.where(seen, np.einsum("njc,njc->nc", weight, a) / np.where(seen, total, 1.0),
                                                surface) for a, surface in ((s_at, sigma_s_prime), (a_at, sigma_a)))
@@ -269,7 +294,13 @@ class MediumClasses:
     def weights(self, points_mm, normals):
         """``(N, K, 3)`` class weights at the surface points ``points_mm`` (N, 3) of outward ``normals``, summing to
         1 over the classes per channel."""
-        sigma_s_prime, sigma_a = self.field.column_coefficients(points_mm, normals)
+        sigma_s_prime, sigma_a = self.field.explored_coefficients(points_mm, normals)
+        bad = ~(np.isfinite(sigma_s_prime) & np.isfinite(sigma_a) & (sigma_s_prime + sigma_a > 0)).all(axis=1)
+        if bad.any():  # what the survey and the lattice did not see (a defect smaller than their spacing)
+            raise ConvsssError(f"translucent shape {self.field.name!r}: its heterogeneous medium has coefficients "
+                               f"that are not finite, or neither scatter nor absorb, under {int(bad.sum())} of "
+                               f"{len(bad)} surface samples (e.g. at {np.round(points_mm[np.argmax(bad)], 4).tolist()} "
+                               "mm)")
         t = np.einsum("ncd,cd->nc", _axis_coordinates(sigma_s_prime, sigma_a) - self.origin, self.direction)
         count = self.nodes.shape[1]
         out = np.zeros((len(t), count, 3))
@@ -293,7 +324,7 @@ def medium_classes(field, survey_mm, normals, eta, inside_mm=()):
     constant = field.constant(np.concatenate([survey_mm, np.reshape(inside_mm, (-1, 3))]), eta)
     if constant is not None:
         return constant
-    sigma_s_prime, sigma_a = field.column_coefficients(survey_mm, normals)
+    sigma_s_prime, sigma_a = field.explored_coefficients(survey_mm, normals)
     empty = (sigma_s_prime + sigma_a) <= 0
     if empty.any():
         raise ConvsssError(f"translucent shape {field.name!r}: its heterogeneous medium neither scatters nor absorbs "

@@ -1,8 +1,9 @@
 """Translucent objects of a loaded Mitsuba scene: shape + boundary BSDF + interior medium -> Material.
 
 Convention (docs/architecture.md): a shape is translucent when its ``interior`` is a ``homogeneous`` medium (or a
-``heterogeneous`` one: :mod:`.media` makes its classes) and its BSDF is ``null`` (``eta = 1``), ``dielectric`` or ``roughdielectric`` (``eta = int_ior / ext_ior``, must be >= 1). The
-medium's coefficients are per scene unit; with ``u`` mm per unit,
+``heterogeneous`` one: :mod:`.media` makes its classes) and its BSDF is ``null`` (``eta = 1``), ``dielectric`` or
+``roughdielectric`` (``eta = int_ior / ext_ior``, must be >= 1). The medium's coefficients are per scene unit; with
+``u`` mm per unit,
 
     sigma_t [1/mm] = scale * sigma_t / u,   sigma_s = albedo * sigma_t,   sigma_a = sigma_t - sigma_s,
     sigma_s' = sigma_s (1 - g)     (g of an ``hg`` phase function; 0 when isotropic).

@@ -116,6 +116,10 @@ class NamedMedium:
 
 def _triple(value, key):
     """An RGB triple of floats from a Mitsuba property value: a number, a colour, a sequence or ``"R,G,B"``."""
+    if hasattr(value, "class_name"):  # a Mitsuba object: a texture (bitmap, checkerboard, a volume)
+        raise ConvsssError(f"convsss_medium: {key} as a {value.class_name()} texture is not supported: give a constant "
+                           f"(rgb or float), or write the interior as a heterogeneous medium of volumes "
+                           f"(convsss scene --volume, docs/guide/scene-files.md)")
     if isinstance(value, str):
         parts = value.split(",")
     elif isinstance(value, bool):
