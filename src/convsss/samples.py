@@ -142,7 +142,9 @@ class LocalIrradiance:
             weight = np.where(facing >= self.cos_limit, weight, 0.0)
             weight[weight.sum(axis=1) == 0, 0] = 1.0  # none on this side: the nearest sample
         weight /= weight.sum(axis=1, keepdims=True)
-        return np.einsum("kj,kj...->k...", weight, values[index])
+        columns = values.reshape(len(values), -1)
+        mean = np.stack([(weight * columns[index, c]).sum(axis=1) for c in range(columns.shape[1])], axis=1)
+        return mean.reshape(len(points), *values.shape[1:])
 
 
 @dataclass(frozen=True, eq=False)

@@ -195,10 +195,11 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
     cell = transport.layer_cell(footprint, p.transport_params())
     count_pixel = sample_count(obj.area_mm2, cell, p.sample_density)
     held_params = transport_params(p, footprint)
-    # a medium of classes: the density each class's profile asks for, averaged over the surface it covers
-    shares = (1.0,) if obj.classes is None else obj.classes.shares
-    profile_area = 1.0 / sum(f / transport.sample_area(profile, held_params) for f, profile in zip(shares,
-                                                                                                  obj.profiles))
+    if obj.classes is None:
+        profile_area = transport.sample_area(obj.profile, held_params)
+    else:  # a medium of classes: the density each class's profile asks for, averaged over the surface it covers
+        profile_area = 1.0 / sum(f / transport.sample_area(profile, held_params)
+                                 for f, profile in zip(obj.classes.shares, obj.class_profiles))
     count = wanted = sample_count(obj.area_mm2, cell, p.sample_density, profile_area, p.profile_samples)
     if count > count_pixel:
         count = max(count_pixel, min(count, sample_cap(scene, p)))
