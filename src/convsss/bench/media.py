@@ -4,7 +4,7 @@ Per scene, everything as whole commands in fresh processes on one scene file (Mi
 volumes, written here):
 
 1. two references, ``convsss reference --spp REFERENCE_SPP`` with seeds 1 and 2 (kept in the output folder and reused
-   when it already holds them at that spp and size);
+   when it already holds them complete at that spp and size);
 2. ``convsss render`` of the scene and of its **homogeneous twin** (the same object, camera and lights with one
    homogeneous medium), ``runs`` times each, interleaved: the medians, and their ratio (the issue's cost goal);
 3. errors over the object's pixels (the render's mask AOV) against the first reference with
@@ -176,7 +176,8 @@ def bench_media_scene(name, width, folder, reference_spp=REFERENCE_SPP, runs=3, 
         return row
     def reference(key, seed):
         path = folder / f"ref-{name}-{width}-{reference_spp}-s{seed}{'-twin' if key == 'twin' else ''}.exr"
-        if not path.exists():
+        done = path.with_suffix(".json")
+        if not (path.exists() and done.exists() and json.loads(done.read_text()).get("spp_done") == reference_spp):
             _run(["reference", str(files[key]), "-o", str(path.with_suffix("")), "--spp", str(reference_spp),
                   "--seed", str(seed)])
         tick(f"reference {key} seed {seed}")
