@@ -11,8 +11,9 @@ reciprocity asks for both alike, so Eq. 1 becomes their mean,
 weighted by their classes, the second over all of them), of whatever kind the render asks for; ``w_k(x)`` at a query
 point is read from the samples' (:class:`~convsss.samples.LocalIrradiance`, which averages the nearest on the
 point's side of the surface). On a homogeneous medium (one class, ``w = 1``) both sums are Eq. 1; where the
-coefficients are constant over a class's reach, so is Eq. H1. A narrow dark vein between two nearby points is seen
-by neither end, so light crosses it as if it were not there.
+coefficients are constant over a class's reach, so is Eq. H1. The weights are the medium each end stands for
+(Eq. H2, within two diffusion lengths of it): a dark vein between two points but farther from both is seen by
+neither, and light crosses it as if it were not there.
 """
 
 import numpy as np
