@@ -18,7 +18,7 @@ from convsss.profiles import (
 from convsss.profiles.beam_diffusion import single_scattering
 from convsss.profiles.burley import burley_values, mean_radius
 from convsss.profiles.diffusion import boundary, point_source_exitance
-from convsss.profiles.models import albedo_from_reflectance, model_total, parse_profile_spec
+from convsss.profiles.models import albedo_from_reflectance, albedos_from_reflectances, model_total, parse_profile_spec
 from convsss.profiles.optical import CORE
 
 pytestmark = pytest.mark.filterwarnings("ignore::scipy.integrate.IntegrationWarning")  # quad at 1e-8 on log r
@@ -117,6 +117,20 @@ def test_colour_and_mfp_round_trip(model):
     m = convsss.material_from_color(color, mfp, eta=1.3, model=model)
     np.testing.assert_allclose(m.mfp_mm, mfp, rtol=1e-12)
     np.testing.assert_allclose(model_profile(model, m).total_reflectance, color, rtol=1e-8)
+
+
+@pytest.mark.parametrize("model", ["exact", "dipole"])
+def test_many_colours_invert_as_one_by_one(model):
+    """The table of albedos_from_reflectances: 1 - alpha' within 3e-4 relative of brentq's root, from dark colours to
+    ones brighter than the table (inverted one by one), any shape; out of reach is one line."""
+    values = np.concatenate([np.linspace(0.005, 0.85, 40), [0.9, 0.95]]).reshape(-1, 3, 1)
+    found = albedos_from_reflectances(model, values, 1.3, where="the test's texture")
+    assert found.shape == values.shape
+    expected = np.array([albedo_from_reflectance(model, v.ravel(), 1.3) for v in values]).reshape(values.shape)
+    np.testing.assert_allclose(1 - found, 1 - expected, rtol=3e-4)
+    with pytest.raises(ConvsssError, match="the test's texture: 1 of 2 values are not reachable") as info:
+        albedos_from_reflectances(model, [0.5, 0.0], 1.3, where="the test's texture")
+    assert "\n" not in str(info.value)
 
 
 def test_colour_out_of_reach_is_one_line_error():

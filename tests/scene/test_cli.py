@@ -726,3 +726,37 @@ def test_scene_with_an_albedo_volume(mi, tmp_path):
         result = run("scene", "--material", "marble", "--size-mm", 20, "--volume", bad, "-o", tmp_path / "bad.xml")
         assert result.exit_code == 2 and words in result.output and len(result.output.strip().splitlines()) == 1
         assert not (tmp_path / "bad.xml").exists()
+
+
+def test_scene_with_a_colour_texture(mi, tmp_path):
+    """--color-texture: the interior is a convsss_medium of the bitmap (named relative to the scene) at --mfp-mm; it
+    loads as the heterogeneous medium of the texture. A mesh without texture coordinates, a missing --mfp-mm or a
+    colour given twice are one line and exit code 2, and nothing is written."""
+    from convsss.scene.loading import load_scene
+    from convsss.scene.objects import find_translucent_objects
+
+    mi.Bitmap(np.full((8, 16, 3), 0.5, dtype=np.float32)).write(str(tmp_path / "paint.exr"))
+    cube = tmp_path / "cube.obj"  # closed, wound outwards, uv = (x, y) over the box
+    corners = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    faces = [(1, 2, 4, 3), (5, 7, 8, 6), (1, 5, 6, 2), (3, 4, 8, 7), (1, 3, 7, 5), (2, 6, 8, 4)]
+    cube.write_text("\n".join([f"v {x} {y} {z}" for x, y, z in corners]
+                              + [f"vt {(x + 1) / 2} {(y + 1) / 2}" for x, y, _ in corners]
+                              + [f"f {a}/{a} {b}/{b} {c}/{c}\nf {a}/{a} {c}/{c} {d}/{d}" for a, b, c, d in faces])
+                    + "\n")
+    out = tmp_path / "painted.xml"
+    result = run("scene", "--mesh", cube, "--color-texture", tmp_path / "paint.exr", "--mfp-mm", 1.5,
+                 "--size-mm", 20, "--width", 8, "--height", 8, "-o", out)
+    assert result.exit_code == 0, result.output
+    text = out.read_text()
+    assert '<medium type="convsss_medium" name="interior">' in text
+    assert '<texture type="bitmap" name="color">' in text and 'value="paint.exr"' in text
+    (obj,) = find_translucent_objects(mi, load_scene(out))
+    assert obj.shape.interior_medium().class_name() == "HeterogeneousMedium"
+    np.testing.assert_allclose(obj.material.mfp_mm, 1.5, rtol=1e-5)
+    texture = ["--color-texture", tmp_path / "paint.exr", "--size-mm", 20, "-o", tmp_path / "bad.xml"]
+    for args, words in ((["--mesh", "bunny", "--mfp-mm", 1.5], "has no texture coordinates"),
+                        (["--mesh", cube, "--mfp-mm", 1.5, "--material", "skin1"], "and --material given"),
+                        (["--mesh", cube], "needs --mfp-mm")):
+        result = run("scene", *args, *texture)
+        assert result.exit_code == 2 and words in result.output and len(result.output.strip().splitlines()) == 1
+        assert not (tmp_path / "bad.xml").exists()

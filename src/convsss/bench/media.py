@@ -23,6 +23,10 @@ Scenes (null boundary, the key and back point lights of :func:`~convsss.scene.qu
 - ``milk-skin-sphere``: a 20 mm sphere whose coefficients go linearly from whole milk (left) to skin1 (right) (albedo
   and ``sigma_t`` volumes); twin: the half-and-half mixture, homogeneous;
 - ``skin-over-milk``: a 20 mm sphere, 1.5 mm of skin1 over a whole-milk core; twin: skin1;
+- ``textured-bunny``: a 20 mm bunny whose ``convsss_medium`` colour is a painted map (:func:`painted_texture`:
+  skin-like, with darker patches 7 mm across) at a mean free path of 0.5 mm, on texture coordinates projected along
+  the view (:func:`_uv_mesh`); its reference renders the heterogeneous medium the texture stands for
+  (:mod:`convsss.scene.textures`); twin: the homogeneous medium of the map's mean colour;
 - ``constant-block``: the block with a constant albedo volume of marble's albedo: its render against the twin's,
   pixel for pixel (no reference).
 """
@@ -37,7 +41,7 @@ from tqdm import tqdm
 
 from .volpath import _image, _run
 
-MEDIA_SCENES = ("veins-block", "veins-bunny", "milk-skin-sphere", "skin-over-milk", "constant-block")
+MEDIA_SCENES = ("veins-block", "veins-bunny", "milk-skin-sphere", "skin-over-milk", "textured-bunny", "constant-block")
 REFERENCE_SPP = 512
 #: Albedo of the veins' darkest cells, per channel.
 VEIN_ALBEDO = (0.9, 0.85, 0.8)
@@ -52,6 +56,34 @@ def _box_obj(path, sides):
     lines += [f"f {a} {b} {c}\nf {a} {c} {d}" for a, b, c, d in faces]
     Path(path).write_text("\n".join(lines) + "\n")
     return path
+
+
+def _uv_mesh(mi, mesh, path):
+    """``mesh`` written to ``path`` (PLY) with texture coordinates projected along z: ``(u, v)`` its (x, y) over
+    its bounding box (no seam)."""
+    shape = mi.load_dict({"type": "obj" if str(mesh).endswith(".obj") else "ply", "filename": str(mesh)})
+    params = mi.traverse(shape)
+    positions = np.asarray(params["vertex_positions"], dtype=np.float64).reshape(-1, 3)
+    faces = np.asarray(params["faces"], dtype=np.uint32)
+    lo, hi = positions.min(axis=0), positions.max(axis=0)
+    uv = (positions[:, :2] - lo[:2]) / (hi[:2] - lo[:2])
+    out = mi.Mesh("uv", len(positions), len(faces) // 3, has_vertex_texcoords=True)
+    params = mi.traverse(out)
+    params["vertex_positions"] = mi.Float(positions.astype(np.float32).ravel())
+    params["faces"] = mi.UInt32(faces)
+    params["vertex_texcoords"] = mi.Float(uv.astype(np.float32).ravel())
+    params.update()
+    out.write_ply(str(path))
+    return Path(path)
+
+
+def painted_texture(mi, path, size=256):
+    """A colour map written to ``path`` (EXR, linear): a skin-like colour with darker patches, 3 x 2 across."""
+    v, u = np.meshgrid((np.arange(size) + 0.5) / size, (np.arange(size) + 0.5) / size, indexing="ij")
+    patches = (0.5 + 0.5 * np.sin(2 * np.pi * 3 * u) * np.sin(2 * np.pi * 2 * v))[..., None] ** 2
+    color = (1 - patches) * np.array([0.75, 0.55, 0.45]) + patches * np.array([0.25, 0.1, 0.06])
+    mi.Bitmap(color.astype(np.float32)).write(str(path))
+    return color
 
 
 def _grid(mi, path, values):
@@ -114,6 +146,17 @@ def scene_pair(name, width, folder):
                                                                                    (8, 8, 8, 3))
         volume = _grid(mi, folder / f"{name}.vol", cells)
         return quick(mesh, marble, size, volume), quick(mesh, marble, size)
+    if name == "textured-bunny":
+        from ..profiles.models import material_from_color
+        from ..scene.quick import color_texture_medium
+
+        mesh = _uv_mesh(mi, demo_mesh(), folder / "bunny-uv.ply")
+        color = painted_texture(mi, folder / "painted.exr")
+        mfp = 0.5
+        twin_material = material_from_color(color.reshape(-1, 3).mean(axis=0), mfp, 1.0, name="painted mean")
+        scene, twin = quick(mesh, twin_material, 20.0), quick(mesh, twin_material, 20.0)
+        scene["object"]["interior"] = color_texture_medium(twin_material, folder / "painted.exr", mfp, "exact")
+        return scene, twin
     radius = 10.0
     box = mi.ScalarTransform4f().translate([-1.02 * radius, -0.02 * radius, -1.02 * radius]).scale(2.04 * radius)
     if name == "milk-skin-sphere":

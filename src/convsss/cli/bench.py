@@ -147,11 +147,11 @@ def bench_fit_command(cases, width, reference_spp, as_json, progress):
 @bench.command("media")
 @click.option("--scene", "scenes", multiple=True,
               type=click.Choice(["veins-block", "veins-bunny", "milk-skin-sphere", "skin-over-milk",
-                                 "constant-block"]),
+                                 "textured-bunny", "constant-block"]),
               help="A scene (repeat for several) [default: all]: a marble block and a 20 mm marble bunny with dark "
                    "gridvolume veins, a 20 mm sphere fading from whole milk to skin1, a sphere of 1.5 mm of skin1 "
-                   "over whole milk, and the block with a constant albedo volume (against the homogeneous block, "
-                   "pixel for pixel).")
+                   "over whole milk, a 20 mm bunny painted with a colour map (convsss_medium), and the block with "
+                   "a constant albedo volume (against the homogeneous block, pixel for pixel).")
 @click.option("--width", type=click.IntRange(16, 4096), default=128, show_default=True,
               help="Image width and height (square).")
 @click.option("--reference-spp", type=click.IntRange(1), default=512, show_default=True,

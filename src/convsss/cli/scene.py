@@ -61,11 +61,18 @@ def mesh_filename(mesh_path, output):
                    "1 or 3 channels in [0, 1]: the interior is then a heterogeneous medium of the material's "
                    "extinction and this albedo, the grid stretched over the object's bounding box (z, y, x cells "
                    "along the scene's axes, y up); the material's own albedo is not used.")
+@click.option("--color-texture", type=click.Path(dir_okay=False),
+              help="A bitmap (PNG, EXR, JPEG) of the surface colour, the total diffuse reflectance per texel in (0, 1) "
+                   "(PNG and JPEG read as sRGB), on the mesh's texture coordinates (it needs them); with --mfp-mm "
+                   "(and --eta, --color-model), instead of --color. The interior is then a convsss_medium of this "
+                   "colour map: coefficients varying along the surface, constant with depth "
+                   "(docs/guide/scene-files.md). It renders with `convsss render` and `convsss reference` (its "
+                   "heterogeneous equivalent), not with plain Mitsuba.")
 @click.option("--id", "shape_id",
               help="The object's id (its name in `convsss render --profile ID=...` and the stats). Default: the mesh "
                    "file's name without extension.")
 def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boundary, unit_mm, floor, width, height,
-          spp, object_only, volume, shape_id):
+          spp, object_only, volume, color_texture, shape_id):
     """Write a scene with a translucent object made of a preset material (or of --color and --mfp-mm, inverted to
     coefficients under --color-model), scaled to --size-mm.
 
@@ -84,6 +91,7 @@ def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boun
       convsss scene --mesh dragon.ply --material marble --size-mm 100 --object-only
       convsss scene --color 0.8,0.5,0.4 --mfp-mm 2 --size-mm 40 -o colour.xml
       convsss scene --mesh cube.obj --material marble --size-mm 30 --volume veins.vol -o veined.xml
+      convsss scene --mesh head.obj --color-texture skin.png --mfp-mm 1.5 --size-mm 200 -o painted.xml
     """
     from ..scene.quick import demo_mesh, quick_scene
     from ..scene.xmlwriter import object_to_xml, scene_to_xml
@@ -91,7 +99,16 @@ def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boun
     mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)
     name = object_id(mesh_path, shape_id)
     if output:
-        check_outputs([output], [mesh_path] + ([volume] if volume else []))
+        check_outputs([output], [mesh_path] + [f for f in (volume, color_texture) if f])
+    if color_texture is not None:
+        given = "--material" if material else "--color" if color else "--volume" if volume else None
+        if given:
+            raise ConvsssError(f"--color-texture and {given} given: the texture is the colour; give it with --mfp-mm")
+        if mfp_mm is None:
+            raise ConvsssError("--color-texture needs --mfp-mm: the reduced mean free path under the colour map")
+        if not Path(color_texture).is_file():
+            raise ConvsssError(f"colour texture {color_texture!r} does not exist")
+        color = "0.5"  # a stand-in for the boundary and the scene's layout: the texture gives the colour
     made = source_material(material, color, mfp_mm, eta, color_model, boundary)
     if made is None:
         raise ConvsssError("no material: give --material NAME, or --color and --mfp-mm")
@@ -102,7 +119,9 @@ def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boun
         load_mitsuba()
         check_albedo_grid(volume)
     scene_dict = quick_scene(mesh_path, made, size_mm, width, height, spp, floor, boundary, unit_mm,
-                             albedo_volume=None if volume is None else mesh_filename(volume, output))
+                             albedo_volume=None if volume is None else mesh_filename(volume, output),
+                             color_texture=None if color_texture is None else mesh_filename(color_texture, output),
+                             color_model=color_model or "exact")
     shape = {**scene_dict["object"], "filename": mesh_filename(mesh_path, output)}
     if object_only:
         text = object_to_xml(name, shape)

@@ -5,9 +5,11 @@ a tabulated profile, for every object, or per object by the shape's id: ``"pbd"`
 ``"better-dipole,bunny=dipole"`` (an entry without ``name=`` sets the rest).
 """
 
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 from scipy.optimize import brentq
 
 from ..errors import ConvsssError
@@ -188,6 +190,46 @@ def albedo_from_reflectance(model, reflectance, eta):
             out[c] = low
             continue
         out[c] = brentq(lambda a, v=value: model_total(model, a, eta) - v, low, high, xtol=1e-12, rtol=1e-10)
+    return out
+
+
+#: The table :func:`albedos_from_reflectances` inverts through: this many nodes evenly spaced in the logit of
+#: ``alpha'``, dense at both ends, up to ``1 - alpha' = INVERSE_FLOOR`` (brighter values, rare, are inverted one by
+#: one: the exact total is slow to evaluate there). ``1 - alpha'`` within 3e-4 relative of brentq's root
+#: (``tests/test_profile_models.py``).
+INVERSE_NODES = 81
+INVERSE_FLOOR = 1e-5
+
+
+@lru_cache(maxsize=16)
+def _inverse_total(model, eta):
+    """``logit(alpha')`` as a monotone (PCHIP) function of the total reflectance under ``model`` at ``eta``, the
+    table's range of totals, and the largest colour (the total at the top of :data:`ALBEDO_RANGE`)."""
+    low = ALBEDO_RANGE[0]
+    logit = np.linspace(np.log(low / (1 - low)), np.log((1 - INVERSE_FLOOR) / INVERSE_FLOOR), INVERSE_NODES)
+    totals = np.array([model_total(model, 1.0 / (1.0 + np.exp(-x)), eta) for x in logit])
+    keep = np.concatenate([[True], np.diff(totals) > 0])  # a table strictly increasing in the total
+    top = min(model_total(model, ALBEDO_RANGE[1], eta), 1.0)
+    return PchipInterpolator(totals[keep], logit[keep]), totals[0], totals[keep][-1], top
+
+
+def albedos_from_reflectances(model, reflectance, eta, where="colour"):
+    """:func:`albedo_from_reflectance` for many values at once (a texture's texels): ``reflectance`` of any shape,
+    inverted through a monotone table (:data:`INVERSE_NODES`); values at or below the total of the least albedo give
+    it. A value outside ``(0, top)`` is a one-line error naming ``where``."""
+    eta = check_eta(eta)
+    values = np.asarray(reflectance, dtype=np.float64)
+    inverse, bottom, brightest, top = _inverse_total(model, eta)
+    bad = ~np.isfinite(values) | (values <= 0) | (values >= top)
+    if bad.any():
+        raise ConvsssError(f"{where}: {int(bad.sum())} of {values.size} values are not reachable by the {model} total "
+                           f"at eta={eta:g} (e.g. {float(values[bad].flat[0])!r}): a colour lies in (0, {top:.4f})")
+    logit = inverse(np.clip(values, bottom, brightest))
+    out = np.where(values <= bottom, ALBEDO_RANGE[0], 1.0 / (1.0 + np.exp(-logit)))
+    beyond = values > brightest
+    for value in np.unique(values[beyond]):
+        out[values == value] = brentq(lambda a, v=value: model_total(model, a, eta) - v, 1.0 - INVERSE_FLOOR,
+                                      ALBEDO_RANGE[1], xtol=1e-12, rtol=1e-10)
     return out
 
 

@@ -19,6 +19,8 @@ from ..errors import ConvsssError
 from .integrator import register
 from .meshfiles import check_mesh_file
 from .objects import check_named_media
+from .presets import any_textured_media, equivalents
+from .textures import equivalent_media
 
 #: ``<string name=...>`` properties that name a file: every plugin's ``filename``, the convsss integrator's ``profile``.
 FILE_PROPERTIES = ("filename", "profile")
@@ -55,24 +57,23 @@ def load_scene(source, width=None, height=None):
     if isinstance(source, dict):
         for name in _dict_files(source):
             check_mesh_file(name)
-        try:
-            scene = mi.load_dict(source, optimize=False)
-        except Exception as error:
-            raise _load_error(error, "cannot build the scene") from None
     else:
         path = Path(source)
         if not path.is_file():
             raise ConvsssError(f"scene file {str(path)!r} does not exist")
         for name in scene_inputs(path)[1:]:  # what would crash Mitsuba's loader is refused first
             check_mesh_file(name)
-        try:
-            scene = mi.load_file(str(path), optimize=False)
-        except Exception as error:
-            raise _load_error(error, f"cannot load scene {str(path)!r}") from None
+    with equivalents({}):  # a textured convsss_medium is first its placeholder
+        scene = _load(mi, source)
     if not scene.sensors():
         raise ConvsssError("the scene has no sensor (camera) to render from")
     check_emitters(mi, scene)
     check_named_media(mi, scene)
+    if any_textured_media():
+        media = equivalent_media(mi, scene)
+        if media:  # loaded again, each textured medium made as the heterogeneous medium it stands for
+            with equivalents(media):
+                scene = _load(mi, source)
     order_vertex_normals(mi, scene)
     for name, value in (("width", width), ("height", height)):
         if value is not None and (int(value) != value or value < 1 or value > 32768):
@@ -81,6 +82,17 @@ def load_scene(source, width=None, height=None):
         for sensor in scene.sensors():
             resize_film(mi, sensor, width, height)
     return scene
+
+
+def _load(mi, source):
+    """Mitsuba's scene of ``source`` (a dictionary or a checked path), or a one-line error."""
+    try:
+        if isinstance(source, dict):
+            return mi.load_dict(source, optimize=False)
+        return mi.load_file(str(source), optimize=False)
+    except Exception as error:
+        raise _load_error(error, "cannot build the scene" if isinstance(source, dict) else
+                          f"cannot load scene {str(source)!r}") from None
 
 
 def _dict_files(value):

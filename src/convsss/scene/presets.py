@@ -35,13 +35,22 @@ does, and a colour only with ``eta = 1``. The integrator's ``unit_mm`` must be t
 renders at another total than its colour's ``model`` warns (:class:`ColorModelWarning`): its total reflectance is
 then not quite the colour.
 
+``color`` may be a texture on the shape (a ``bitmap``, or any 2D texture) and ``mfp_mm`` a constant or a texture:
+a medium whose coefficients vary along the surface and are constant with depth (:mod:`.textures`). Such a medium
+stands for a ``heterogeneous`` one of ``gridvolume`` coefficients built from the texture over its shape
+(:func:`~.textures.equivalent_media`), which :func:`~convsss.scene.loading.load_scene` makes when it loads the scene,
+so that convsss and ``volpathmis`` (``convsss reference``) render one medium. Loaded any other way it is the
+homogeneous medium of the texture's mean colour (:class:`TextureWarning`).
+
 The constructor returns Mitsuba's native medium; which medium came from which ``convsss`` properties is kept here
 (:func:`named_medium_of`), keyed by the medium's address and its coefficients, so an edited medium (the editor
 writes new ones, :func:`forget`) is an ordinary ``homogeneous`` one again.
 """
 
+import hashlib
 import threading
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,6 +79,15 @@ DEFAULT_ETA = 1.3
 ETA_TOLERANCE = 1e-5
 
 
+#: The (u, v) lattice per side a texture is read on for its mean and its fingerprint.
+TEXTURE_LATTICE = 64
+
+
+class TextureWarning(UserWarning):
+    """A ``convsss_medium`` of textured colour was loaded without its heterogeneous equivalent (outside
+    :func:`~convsss.scene.loading.load_scene`): it is the homogeneous medium of the texture's mean colour."""
+
+
 class ColorModelWarning(UserWarning):
     """An object whose medium is given by colour renders with another profile model than the colour's."""
 
@@ -86,6 +104,9 @@ class NamedMedium:
     color : tuple or None    total reflectance per channel (a colour medium)
     mfp_mm : tuple or None   reduced mean free path per channel, mm (a colour medium)
     model : str or None      the profile model the colour is inverted under (a colour medium)
+    color_texture : object   the Mitsuba texture of the colour (``color`` is then its mean), or None
+    mfp_texture : object     the Mitsuba texture of the mean free path (``mfp_mm`` its mean), or None
+    key : tuple              what tells two textured media apart (their values on a lattice), or None
     """
 
     material: Material
@@ -94,32 +115,70 @@ class NamedMedium:
     color: tuple = None
     mfp_mm: tuple = None
     model: str = None
+    color_texture: object = None
+    mfp_texture: object = None
+    key: tuple = None
 
     @property
     def eta(self):
         return self.material.eta
+
+    @property
+    def textured(self):
+        """Whether the colour or the mean free path is a texture on the shape."""
+        return self.color_texture is not None or self.mfp_texture is not None
 
     def describe(self):
         """``preset 'Skin1'`` or ``color 0.8,0.5,0.3, mfp_mm 2 (dipole, eta 1.3)``, for messages and the stats."""
         if self.preset is not None:
             return f"preset {self.preset!r}"
 
-        def listed(values):
+        def listed(values, texture):
+            if texture is not None:
+                return f"a {texture.class_name()} texture"
             return ",".join(f"{x:g}" for x in (values if len(set(values)) > 1 else values[:1]))
 
-        return f"color {listed(self.color)}, mfp_mm {listed(self.mfp_mm)} ({self.model}, eta {self.eta:g})"
+        return (f"color {listed(self.color, self.color_texture)}, mfp_mm {listed(self.mfp_mm, self.mfp_texture)} "
+                f"({self.model}, eta {self.eta:g})")
 
     def medium_dict(self):
         """The Mitsuba ``homogeneous`` medium this stands for (:func:`~convsss.scene.materials.medium_dict`)."""
         return medium_dict(self.material, self.unit_mm)
 
 
+def texture_values(texture, uv):
+    """A 2D Mitsuba ``texture``'s RGB values (N, 3) at the texture coordinates ``uv`` (N, 2)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    si = dr.zeros(mi.SurfaceInteraction3f, len(uv))
+    si.uv = mi.Point2f(*np.asarray(uv, dtype=np.float32).T)
+    return np.asarray(texture.eval(si), dtype=np.float64).reshape(3, -1).T
+
+
+def _texture(value, key):
+    """``value`` if it is a 2D Mitsuba texture; a one-line error for a volume or any other Mitsuba object."""
+    import mitsuba as mi
+
+    if not isinstance(value, mi.Texture):
+        hint = (": a convsss_medium's colour is a texture on the surface; for a volume write the interior as a "
+                "heterogeneous medium (convsss scene --volume, docs/guide/scene-files.md)"
+                if isinstance(value, mi.Volume) else ": give a constant (rgb or float) or a 2D texture (bitmap)")
+        raise ConvsssError(f"convsss_medium: {key} as a {value.class_name()} is not supported{hint}")
+    return value
+
+
+def _lattice_values(texture):
+    """``texture``'s values (TEXTURE_LATTICE^2, 3) at the centres of a lattice over (u, v) in [0, 1]^2."""
+    t = (np.arange(TEXTURE_LATTICE) + 0.5) / TEXTURE_LATTICE
+    return texture_values(texture, np.stack(np.meshgrid(t, t, indexing="ij"), axis=-1).reshape(-1, 2))
+
+
 def _triple(value, key):
     """An RGB triple of floats from a Mitsuba property value: a number, a colour, a sequence or ``"R,G,B"``."""
-    if hasattr(value, "class_name"):  # a Mitsuba object: a texture (bitmap, checkerboard, a volume)
-        raise ConvsssError(f"convsss_medium: {key} as a {value.class_name()} texture is not supported: give a constant "
-                           f"(rgb or float), or write the interior as a heterogeneous medium of volumes "
-                           f"(convsss scene --volume, docs/guide/scene-files.md)")
+    if hasattr(value, "class_name"):  # a Mitsuba object: only color and mfp_mm take textures, read before this
+        raise ConvsssError(f"convsss_medium: {key} as a {value.class_name()} is not supported: give a constant "
+                           "(rgb or float)")
     if isinstance(value, str):
         parts = value.split(",")
     elif isinstance(value, bool):
@@ -210,13 +269,28 @@ def named_medium(values):
     if not isinstance(model, str):
         raise ConvsssError(f"convsss_medium: model={model!r} is not allowed: give a model's name")
     eta = _number(values.get("eta", DEFAULT_ETA), "eta")
-    color, mfp = _triple(values["color"], "color"), _triple(values["mfp_mm"], "mfp_mm")
+    textures, given, lattices = {}, {}, []
+    for key in ("color", "mfp_mm"):  # a texture on the shape: its mean here, its values per point at the load
+        if hasattr(values[key], "class_name"):
+            textures[key] = _texture(values[key], key)
+            lattice = _lattice_values(textures[key])
+            if not (np.all(np.isfinite(lattice)) and np.all(lattice > 0)):
+                raise ConvsssError(f"convsss_medium: the {key} texture has values that are not finite or <= 0 (e.g. "
+                                   f"{lattice[~(np.isfinite(lattice) & (lattice > 0))][0]!r}): it must be > 0 "
+                                   "everywhere")
+            given[key] = tuple(float(x) for x in lattice.mean(axis=0))
+            lattices.append(lattice.astype(np.float32).tobytes())
+        else:
+            given[key] = _triple(values[key], key)
+    color, mfp = given["color"], given["mfp_mm"]
     try:
         model = check_color_model_name(model)
         found = material_from_color(color, mfp, eta, model, name="color", warn=False)
     except ConvsssError as error:
-        raise ConvsssError(f"convsss_medium: {error}") from None
-    return NamedMedium(found, unit_mm, color=color, mfp_mm=mfp, model=model)
+        raise ConvsssError(f"convsss_medium: {error}{' (the texture mean)' if textures else ''}") from None
+    key = (unit_mm, eta, model, color, mfp, *lattices) if textures else None
+    return NamedMedium(found, unit_mm, color=color, mfp_mm=mfp, model=model, color_texture=textures.get("color"),
+                       mfp_texture=textures.get("mfp_mm"), key=key)
 
 
 # ---- The Mitsuba plugin ----------------------------------------------------------------------------------------
@@ -225,15 +299,19 @@ def named_medium(values):
 #: builds a scene's objects on several threads).
 _MADE = {}
 _LOCK = threading.Lock()
+#: While :func:`equivalents` holds: per textured medium's key, the heterogeneous medium's dictionary the constructor
+#: makes instead (None: the placeholder, without a warning).
+_EQUIVALENTS = None
 
 
 def _fingerprint(mi, medium):
-    """The medium's coefficients as Mitsuba holds them (sigma_t, albedo, scale), or None for another kind."""
+    """A digest of the medium's parameters as Mitsuba holds them (coefficients, volumes' data, scale)."""
     params = mi.traverse(medium)
-    keys = ("sigma_t.value.value", "albedo.value.value", "scale")
-    if not all(k in params for k in keys):
-        return None
-    return tuple(tuple(np.asarray(params[k], dtype=np.float64).reshape(-1).tolist()) for k in keys)
+    digest = hashlib.blake2b(digest_size=16)
+    for key in sorted(params.keys()):
+        digest.update(key.encode())
+        digest.update(np.ascontiguousarray(np.asarray(params[key], dtype=np.float64)).tobytes())
+    return digest.hexdigest()
 
 
 def construct(props):
@@ -242,12 +320,32 @@ def construct(props):
 
     mi = load_mitsuba()
     named = named_medium({key: props[key] for key in props.keys()})  # reading a property marks it as used
-    medium = mi.load_dict(named.medium_dict())
+    with _LOCK:
+        equivalent = None if _EQUIVALENTS is None or not named.textured else _EQUIVALENTS.get(named.key)
+    if named.textured and _EQUIVALENTS is None:
+        warnings.warn(f"convsss_medium ({named.describe()}): loaded outside convsss.load_scene, it is the "
+                      "homogeneous medium of the texture's mean colour, not its heterogeneous equivalent",
+                      TextureWarning, stacklevel=2)
+    medium = mi.load_dict(equivalent or named.medium_dict())
     if props.id():
         medium.set_id(props.id())
     with _LOCK:
         _MADE[medium.ptr] = (named, _fingerprint(mi, medium))
     return medium
+
+
+@contextmanager
+def equivalents(media):
+    """While held, a textured ``convsss_medium`` whose key is in ``media`` (key -> a Mitsuba medium dictionary) is
+    made as that medium; any other textured one is its placeholder, without a :class:`TextureWarning`."""
+    global _EQUIVALENTS
+    with _LOCK:
+        _EQUIVALENTS = dict(media)
+    try:
+        yield
+    finally:
+        with _LOCK:
+            _EQUIVALENTS = None
 
 
 def register_medium(mi):
@@ -307,6 +405,12 @@ def check_color_model(named, spec, name, total):
                   f"{named.model} total but it renders with the {rendered} total, "
                   f"{np.round(color_of(named.material, rendered), 4).tolist()}; give the medium model {rendered!r} "
                   "to match the colour", ColorModelWarning, stacklevel=3)
+
+
+def any_textured_media():
+    """Whether this process has made any ``convsss_medium`` of textured colour or mean free path."""
+    with _LOCK:
+        return any(named.textured for named, _ in _MADE.values())
 
 
 def any_named_media():

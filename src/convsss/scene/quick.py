@@ -46,6 +46,20 @@ def mesh_dict(path):
     return {"type": kind, "filename": str(path.resolve())}
 
 
+def load_mesh(path):
+    """The Mitsuba mesh of a mesh file, checked (:func:`~.meshfiles.check_mesh_file`), or a one-line error."""
+    from .meshfiles import check_mesh_file
+
+    mi = load_mitsuba()
+    check_mesh_file(path)
+    try:
+        return mi.load_dict(mesh_dict(path))
+    except ConvsssError:
+        raise
+    except Exception as error:
+        raise ConvsssError(f"cannot read mesh {str(path)!r}: {' '.join(str(error).split())}") from None
+
+
 def mesh_bounds(path):
     """(min, max) corners of the mesh in its own units.
 
@@ -59,18 +73,18 @@ def mesh_bounds(path):
     lo, hi : numpy.ndarray, shape (3,), float64
         The corners of its bounding box, in the mesh's units.
     """
-    from .meshfiles import check_mesh_file
-
-    mi = load_mitsuba()
-    check_mesh_file(path)
-    try:
-        shape = mi.load_dict(mesh_dict(path))
-    except ConvsssError:
-        raise
-    except Exception as error:
-        raise ConvsssError(f"cannot read mesh {str(path)!r}: {' '.join(str(error).split())}") from None
-    box = shape.bbox()
+    box = load_mesh(path).bbox()
     return np.array(list(box.min), dtype=np.float64), np.array(list(box.max), dtype=np.float64)
+
+
+def color_texture_medium(material, color_texture, mfp_mm, color_model, unit_mm=1.0):
+    """A ``convsss_medium`` dictionary whose colour is the bitmap file ``color_texture`` on the shape and whose
+    reduced mean free path is ``mfp_mm`` (3,), inverted under ``color_model`` at ``material``'s eta
+    (:mod:`.presets`, :mod:`.textures`)."""
+    mfp = [float(x) for x in np.broadcast_to(np.asarray(mfp_mm, dtype=np.float64), (3,))]
+    return {"type": "convsss_medium", "color": {"type": "bitmap", "filename": str(color_texture)},
+            "mfp_mm": mfp[0] if len(set(mfp)) == 1 else ",".join(repr(x) for x in mfp),
+            "eta": float(material.eta), "model": str(color_model), "unit_mm": float(unit_mm)}
 
 
 def _matrix(m):
@@ -85,7 +99,7 @@ def _look_at(origin, target, up=(0.0, 1.0, 0.0)):
 
 
 def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=False, boundary="dielectric",
-                unit_mm=1.0, integrator=None, albedo_volume=None):
+                unit_mm=1.0, integrator=None, albedo_volume=None, color_texture=None, color_model="exact"):
     """The scene dictionary described in the module docstring.
 
     Parameters
@@ -111,6 +125,11 @@ def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=Fa
         A ``gridvolume`` file of the albedo (1 or 3 channels): the interior is then a ``heterogeneous`` medium of
         ``material``'s extinction and this albedo, the grid stretched over the object's bounding box (grown by
         :data:`VOLUME_MARGIN` of its size each side).
+    color_texture : str, optional
+        A bitmap file of the surface colour (the mesh needs texture coordinates): the interior is then a
+        ``convsss_medium`` of this colour map at ``material``'s mean free path and eta, inverted under
+        ``color_model`` (:func:`color_texture_medium`; it renders with convsss and ``convsss reference``, not with
+        plain Mitsuba, which does not know the medium).
     """
     size_mm = float(size_mm)
     if not math.isfinite(size_mm) or size_mm <= 0:
@@ -157,6 +176,13 @@ def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=Fa
         box = np.diag([*(2 * half + 2 * margin), 1.0])
         box[:3, 3] = [-half[0] - margin, -margin, -half[2] - margin]
         scene["object"]["interior"] = albedo_volume_dict(material, albedo_volume, _matrix(box), unit_mm)
+    if color_texture is not None:
+        if albedo_volume is not None:
+            raise ConvsssError("an albedo volume and a colour texture given: give one")
+        if not load_mesh(mesh).has_vertex_texcoords():
+            raise ConvsssError(f"mesh {str(mesh)!r} has no texture coordinates (uv): a colour texture needs them")
+        scene["object"]["interior"] = color_texture_medium(material, color_texture, material.mfp_mm, color_model,
+                                                           unit_mm)
     if floor:
         scene["floor"] = {
             "type": "rectangle",

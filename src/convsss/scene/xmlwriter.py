@@ -56,7 +56,7 @@ def _element(key, value, indent, top_level=False):
             return [f'{pad}<rgb name={quoteattr(key)} value="{_numbers(np.ravel(value["value"]))}"/>']
         tag = _category(key, value, top_level)
         attrs = f'type={quoteattr(value["type"])}'
-        if tag in ("medium", "volume"):
+        if tag in ("medium", "volume", "texture"):
             attrs += f" name={quoteattr(key)}"
         elif top_level and tag in ("shape", "emitter"):
             attrs += f" id={quoteattr(key)}"
