@@ -26,7 +26,12 @@ Mitsuba evaluates the coefficients (``Medium.get_scattering_coefficients``) wher
   :data:`CLASS_STEP` along it, at most :data:`MAX_CLASSES`, are the classes: node ``k`` of every channel makes the
   homogeneous :class:`~convsss.materials.Material` of class ``k``, whose profile is a model's as for any object.
 * **The samples** (:meth:`MediumClasses.weights`): each sample's explored coefficients, projected on its channel's
-  axis, split between the two nearest nodes (hat weights, summing to 1 per channel). Light entering at a sample
+  axis, split between the two nearest nodes (hat weights, summing to 1 per channel). The projections are tabulated
+  once per object on points spread over its surface at a quarter of the classes' shortest diffusion length
+  (:data:`TABLE_SPACING`; Eq. H2 averages over about half a diffusion length, so they vary no faster) and read at
+  any surface point from its :data:`TABLE_NEIGHBOURS` nearest entries, inverse-distance weighted: the cost of a
+  render's weights is set by the object's size in diffusion lengths, not by its samples, and every pass reads the
+  same table. Light entering at a sample
   spreads with its classes' profiles, and light leaving at a point with the point's (:mod:`convsss.transport.mixture`,
   Eq. H1).
 
@@ -62,6 +67,11 @@ COLUMN = 2.0
 COLUMN_CAP_MM = 1e3
 #: Surface points per round of :meth:`MediumField.explored_coefficients` (``DEPTHS`` Mitsuba lookups each).
 CHUNK = 1 << 15
+#: The table of :meth:`MediumClasses.weights`: its spacing as a fraction of the classes' shortest diffusion length,
+#: its fewest and most points (a coarser spacing beyond), and the entries read per point.
+TABLE_SPACING = 0.25
+TABLE_POINTS = (SURVEY_POINTS, 1 << 18)
+TABLE_NEIGHBOURS = 4
 #: Coefficients within this relative spread over the survey are one medium's (a constant volume's values read back
 #: through float32 interpolation differ in their last bits).
 CONSTANT_SPREAD = 1e-5
@@ -281,7 +291,9 @@ class MediumClasses:
     them (:meth:`weights`): per channel an axis through ``origin`` (3, 2) along ``direction`` (3, 2) with the nodes
     at coordinates ``nodes`` (3, K); ``mean`` the material at the axes' origin (the survey's mean point), what the
     object's single-material quantities read (the plan's summary, single scattering, the entry gain); ``shares``
-    each class's share of the surface (its mean weight over the survey and the channels)."""
+    each class's share of the surface (its mean weight over the survey and the channels); ``table`` the surface
+    points (M, 3) mm and their coordinates along the axes (M, 3) that :meth:`weights` reads (None: computed at each
+    point)."""
 
     field: MediumField
     materials: tuple
@@ -290,18 +302,35 @@ class MediumClasses:
     nodes: np.ndarray
     mean: Material = None
     shares: tuple = ()
+    table: tuple = None
 
-    def weights(self, points_mm, normals):
-        """``(N, K, 3)`` class weights at the surface points ``points_mm`` (N, 3) of outward ``normals``, summing to
-        1 over the classes per channel."""
+    def coordinates(self, points_mm, normals):
+        """``(N, 3)``: per channel, the coordinate along its axis of the explored coefficients (Eq. H2) at the
+        surface points ``points_mm`` (N, 3) of outward ``normals``."""
+        if self.table is not None:
+            from scipy.spatial import cKDTree
+
+            entries, values = self.table
+            tree = self.__dict__.get("_tree")
+            if tree is None:
+                tree = cKDTree(entries)
+                object.__setattr__(self, "_tree", tree)
+            distance, index = tree.query(np.asarray(points_mm, dtype=np.float64), k=TABLE_NEIGHBOURS, workers=-1)
+            weight = 1.0 / np.maximum(distance, 1e-9) ** 2
+            return np.einsum("nk,nkc->nc", weight, values[index]) / weight.sum(axis=1, keepdims=True)
         sigma_s_prime, sigma_a = self.field.explored_coefficients(points_mm, normals)
         bad = ~(np.isfinite(sigma_s_prime) & np.isfinite(sigma_a) & (sigma_s_prime + sigma_a > 0)).all(axis=1)
         if bad.any():  # what the survey and the lattice did not see (a defect smaller than their spacing)
             raise ConvsssError(f"translucent shape {self.field.name!r}: its heterogeneous medium has coefficients "
                                f"that are not finite, or neither scatter nor absorb, under {int(bad.sum())} of "
-                               f"{len(bad)} surface samples (e.g. at {np.round(points_mm[np.argmax(bad)], 4).tolist()} "
+                               f"{len(bad)} surface points (e.g. at {np.round(points_mm[np.argmax(bad)], 4).tolist()} "
                                "mm)")
-        t = np.einsum("ncd,cd->nc", _axis_coordinates(sigma_s_prime, sigma_a) - self.origin, self.direction)
+        return np.einsum("ncd,cd->nc", _axis_coordinates(sigma_s_prime, sigma_a) - self.origin, self.direction)
+
+    def weights(self, points_mm, normals):
+        """``(N, K, 3)`` class weights at the surface points ``points_mm`` (N, 3) of outward ``normals``, summing to
+        1 over the classes per channel."""
+        t = self.coordinates(points_mm, normals)
         count = self.nodes.shape[1]
         out = np.zeros((len(t), count, 3))
         if count == 1:
@@ -317,10 +346,12 @@ class MediumClasses:
         return out
 
 
-def medium_classes(field, survey_mm, normals, eta, inside_mm=()):
+def medium_classes(field, survey_mm, normals, eta, inside_mm=(), surface=None):
     """The classes of ``field`` over the surface points ``survey_mm`` (N, 3) of outward ``normals`` (module
     docstring): a :class:`MediumClasses`, or the one :class:`Material` where the coefficients do not vary there nor
-    at the points ``inside_mm`` (M, 3) (a constant surface over another core is not homogeneous)."""
+    at the points ``inside_mm`` (M, 3) (a constant surface over another core is not homogeneous). ``surface(count)``
+    gives about ``count`` points spread over the surface, ``(points (n, 3) mm, outward normals (n, 3), area mm^2)``,
+    for the table of :meth:`MediumClasses.weights` (None: no table)."""
     constant = field.constant(np.concatenate([survey_mm, np.reshape(inside_mm, (-1, 3))]), eta)
     if constant is not None:
         return constant
@@ -351,5 +382,12 @@ def medium_classes(field, survey_mm, normals, eta, inside_mm=()):
         on_axis = origin + nodes[:, k, None] * direction
         materials.append(_material(np.where(total[:, None] > 0, mean, on_axis), eta, f"{field.name} class {k}"))
     shares = tuple(float(f) for f in weight.mean(axis=(0, 2)))
+    table = None
+    if surface is not None:
+        _, _, area = surface(SURVEY_POINTS)
+        shortest = min(float(np.min(m.diffusion_length_mm)) for m in materials)
+        count = int(np.clip(area / (TABLE_SPACING * shortest) ** 2, *TABLE_POINTS))
+        points, outward, _ = surface(count)
+        table = (points, classes.coordinates(points, outward))
     return MediumClasses(field, tuple(materials), origin, direction, nodes, _material(origin, eta, field.name),
-                         shares)
+                         shares, table)

@@ -169,11 +169,16 @@ def interior_material(mi, medium, eta, unit_mm, name, shape, to_world, orientati
     if medium.class_name() == "HomogeneousMedium":
         return medium_material(mi, medium, eta, unit_mm, name), None
     field = MediumField(medium, unit_mm, _phase_g(mi.traverse(medium)), name)
-    position, normal, _ = sample_surface(shape, SURVEY_POINTS, seed=0, orientation=orientation, to_world=to_world)
-    survey, normal = (np.asarray(a, dtype=np.float64).reshape(3, -1).T for a in (position, normal))
-    survey = survey * unit_mm
+
+    def surface(count, seed=0):
+        """About ``count`` stratified surface points (mm), their outward normals and the surface's area (mm^2)."""
+        position, normal, area = sample_surface(shape, count, seed=seed, orientation=orientation, to_world=to_world)
+        points, normal = (np.asarray(a, dtype=np.float64).reshape(3, -1).T for a in (position, normal))
+        return points * unit_mm, normal, float(np.sum(area.numpy(), dtype=np.float64)) * unit_mm**2
+
+    survey, normal, _ = surface(SURVEY_POINTS)
     checked = field.check(survey, bbox_mm)
-    classes = medium_classes(field, survey, normal, eta, checked)
+    classes = medium_classes(field, survey, normal, eta, checked, lambda count: surface(count, seed=1))
     if isinstance(classes, Material):
         return classes, None
     return classes.mean, classes
