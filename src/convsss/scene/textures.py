@@ -30,7 +30,7 @@ from ..profiles.models import albedos_from_reflectances
 from .irradiance import surface_square
 from .materials import medium_parameters
 from .objects import scene_surfaces, world_bbox
-from .presets import named_medium_of, texture_values
+from .presets import forget, named_medium_of, texture_values
 
 #: Cells of the grid along the box's longest side (each other side in proportion, at least 2).
 GRID_CELLS = 96
@@ -57,7 +57,7 @@ def textured_media(mi, scene):
     return found
 
 
-def _surface_points(mi, named, shapes, count):
+def _surface_points(named, shapes, count):
     """``(positions (N, 3) in scene units, sigma_s' (N, 3), sigma_t' (N, 3) in 1/mm)`` at about ``count`` points
     spread over ``shapes`` in proportion to their areas (Eq. T1 at each)."""
     areas = np.array([float(np.asarray(shape.surface_area()).reshape(-1)[0]) for _, shape in shapes])
@@ -94,7 +94,7 @@ def equivalent_medium(mi, named, shapes):
     cells = np.maximum(np.ceil((high - low) / cell).astype(int), 2)  # (x, y, z)
     high = low + cells * cell
     count = min(int(POINTS_PER_CELL * GRID_CELLS**2), MAX_SURFACE_POINTS)
-    points, sigma_s_prime, sigma_t_prime = _surface_points(mi, named, shapes, count)
+    points, sigma_s_prime, sigma_t_prime = _surface_points(named, shapes, count)
     # The cells the surface crosses take their centre's nearest surface point; every other cell the value of its
     # nearest such cell (a Euclidean distance transform: within a cell of Eq. T1's nearest point, at a cost linear
     # in the cells).
@@ -124,5 +124,12 @@ def equivalent_medium(mi, named, shapes):
 
 
 def equivalent_media(mi, scene):
-    """Per textured ``convsss_medium`` of ``scene`` (:func:`textured_media`), its key -> :func:`equivalent_medium`."""
-    return {key: equivalent_medium(mi, named, shapes) for key, (named, shapes) in textured_media(mi, scene).items()}
+    """Per textured ``convsss_medium`` of ``scene`` (:func:`textured_media`), its key -> :func:`equivalent_medium`;
+    the placeholders ``scene`` holds are forgotten (:func:`~.presets.forget`: the scene is to be loaded again with
+    the equivalents, and a medium made later at one of their addresses is not theirs)."""
+    found = textured_media(mi, scene)
+    media = {key: equivalent_medium(mi, named, shapes) for key, (named, shapes) in found.items()}
+    for _, shapes in found.values():
+        for _, shape in shapes:
+            forget(shape.interior_medium())
+    return media
