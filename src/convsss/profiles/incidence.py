@@ -79,16 +79,19 @@ def _rule(eta=1.0):
 
 @lru_cache(maxsize=256)
 def _h_nodes(albedo, eta=1.0):
-    """``H`` at the nodes of ``_rule(eta)`` (fixed point of the ``1/H`` form, which converges for every albedo < 1)."""
+    """``H`` at the nodes of ``_rule(eta)``: the root of ``H_i (sqrt(1 - albedo) + albedo/2 sum_j K_ij H_j) = 1``,
+    ``K_ij = w_j mu_j / (mu_i + mu_j)`` (the ``1/H`` form of Eq. O2's H-equation), by Newton's method from ``H = 1``
+    (a few steps at any albedo < 1, where the fixed-point iteration takes up to 1e5 near albedo 1)."""
     mu, w = _rule(eta)
     root = np.sqrt(max(1.0 - albedo, 0.0))
-    h = np.ones(NODES)
     kernel = w * mu / (mu[:, None] + mu)
-    for _ in range(100000):
-        new = 1.0 / (root + 0.5 * albedo * kernel @ h)
-        if np.max(np.abs(new - h)) < 1e-13 * np.max(new):
-            return new
-        h = new
+    h = np.ones(NODES)
+    for _ in range(100):
+        s = root + 0.5 * albedo * kernel @ h
+        residual = h * s - 1.0
+        if np.max(np.abs(residual)) < 1e-14:
+            break
+        h = h - np.linalg.solve(np.diag(s) + 0.5 * albedo * h[:, None] * kernel, residual)
     return h
 
 
