@@ -1,4 +1,4 @@
-"""Media that vary in space: a veined marble bunny and a sphere of skin over milk, as Mitsuba scene files.
+"""Media that vary in space: a veined marble bunny, a sphere of skin over milk and a painted sphere, as scene files.
 
 Run it (`python examples/heterogeneous.py`): it writes to `$CONVSSS_EXAMPLE_OUT` (default `out/heterogeneous`) two
 scenes whose interiors are Mitsuba `heterogeneous` media of `gridvolume` volumes, renders each with convsss, and
@@ -7,7 +7,10 @@ prints the commands that render their ground truth with `volpathmis` from the sa
 - `veined-marble.xml`: a 20 mm marble bunny crossed by dark veins (an albedo volume, written with
   `mitsuba.VolumeGrid(array).write` and placed over the object by `quick_scene(..., albedo_volume=...)`, as
   `convsss scene --volume` does);
-- `skin-over-milk.xml`: a 20 mm sphere, 1.5 mm of skin1 over a whole-milk core (albedo and `sigma_t` volumes).
+- `skin-over-milk.xml`: a 20 mm sphere, 1.5 mm of skin1 over a whole-milk core (albedo and `sigma_t` volumes);
+- `painted-sphere.xml`: a 20 mm sphere whose `convsss_medium` colour is a bitmap (bands of skin and of a dark red,
+  on the sphere's own uv) at a 1 mm mean free path; `convsss.load_scene` (every command) makes it the heterogeneous
+  medium it stands for, which `convsss reference` renders too.
 
 See docs/guide/scene-files.md ("Media that vary in space") for what convsss does with them and what it does not.
 """
@@ -64,11 +67,22 @@ layered["object"] = {
                              "to_world": box}},
 }
 
+# A painted sphere: a colour map (total reflectance per texel) on the sphere's uv, bands across its azimuth.
+v, u = np.meshgrid((np.arange(128) + 0.5) / 128, (np.arange(256) + 0.5) / 256, indexing="ij")
+band = (0.5 + 0.5 * np.cos(2 * np.pi * 4 * u))[..., None]
+mi.Bitmap(((1 - band) * np.array([0.75, 0.55, 0.45]) + band * np.array([0.45, 0.08, 0.05])).astype(np.float32)).write(
+    str(OUT / "paint.exr"))
+painted = quick_scene(demo_mesh(), skin, 2 * radius, SIZE, SIZE, 16, boundary="null")
+painted["object"] = {"type": "sphere", "center": [0.0, radius, 0.0], "radius": radius, "bsdf": {"type": "null"},
+                     "interior": {"type": "convsss_medium", "color": {"type": "bitmap", "filename": "paint.exr"},
+                                  "mfp_mm": 1.0, "eta": 1.0}}
+
 integrator = mi.load_dict({"type": "convsss"})  # the files name volpathmis, their ground truth
-for name, scene in (("veined-marble", veined), ("skin-over-milk", layered)):
+for name, scene in (("veined-marble", veined), ("skin-over-milk", layered), ("painted-sphere", painted)):
     path = OUT / f"{name}.xml"
-    path.write_text(scene_to_xml(scene))  # volpathmis is the file's integrator: plain Mitsuba renders ground truth
-    image = convsss.render(mi.load_file(str(path)), integrator=integrator, seed=0)
+    path.write_text(scene_to_xml(scene))  # volpathmis is the file's integrator: ground truth (plain Mitsuba for the
+    # volumes; `convsss reference` for the painted one, whose convsss_medium plain Mitsuba does not know)
+    image = convsss.render(convsss.load_scene(path), integrator=integrator, seed=0)
     mi.Bitmap(image).write(str(OUT / f"{name}.exr"))
     mi.Bitmap(image).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, True).write(str(OUT / f"{name}.png"))
     print(f"{path}: {OUT / f'{name}.exr'}; ground truth and the comparison:\n"

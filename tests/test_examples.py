@@ -80,15 +80,15 @@ def test_the_readme_python_example_runs(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 def test_the_heterogeneous_example_writes_scenes_that_load_as_varying_media(tmp_path, monkeypatch):
-    """examples/heterogeneous.py at 24²: two scene files with their volumes and renders; each interior is
-    Mitsuba's heterogeneous medium, read as classes (not one homogeneous material)."""
+    """examples/heterogeneous.py at 24²: three scene files with their volumes (or colour map) and renders; each
+    interior is Mitsuba's heterogeneous medium, read as classes (not one homogeneous material)."""
     from convsss.scene.loading import load_scene
     from convsss.scene.objects import find_translucent_objects
 
     monkeypatch.setenv("CONVSSS_EXAMPLE_OUT", str(tmp_path))
     monkeypatch.setenv("CONVSSS_EXAMPLE_SIZE", "24")
     ns = runpy.run_path(str(NOTEBOOK.parent / "heterogeneous.py"), run_name="__main__")
-    for name in ("veined-marble", "skin-over-milk"):
+    for name in ("veined-marble", "skin-over-milk", "painted-sphere"):
         image = np.array(ns["mi"].Bitmap(str(tmp_path / f"{name}.exr")))
         assert image.shape[:2] == (24, 24) and image[..., :3].max() > 0
         scene = load_scene(tmp_path / f"{name}.xml")

@@ -24,7 +24,7 @@ def __getattr__(name):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = ["ConvsssError", "DipoleProfile", "Material", "Profile", "TabulatedProfile", "catalog", "fit", "material",
-           "material_from_color", "model_profile", "register", "render", "__version__"]
+           "load_scene", "material_from_color", "model_profile", "register", "render", "__version__"]
 
 
 def register(variant=None):
@@ -40,6 +40,19 @@ def register(variant=None):
     from .scene import register as _register
 
     return _register(variant)
+
+
+def load_scene(source, width=None, height=None):
+    """A ``mitsuba.Scene`` from an XML path or a scene dictionary, checked, with the convsss plugins registered and
+    every film resized to ``width`` x ``height`` where given (:func:`convsss.scene.loading.load_scene`): what every
+    ``convsss`` command loads. A ``convsss_medium`` of textured colour is made here as the heterogeneous medium it
+    stands for (``mi.load_file`` gives its mean colour)::
+
+        image = convsss.render(convsss.load_scene("painted.xml"))
+    """
+    from .scene.loading import load_scene as _load_scene
+
+    return _load_scene(source, width, height)
 
 
 def render(scene, *args, **kwargs):
