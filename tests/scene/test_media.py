@@ -100,7 +100,7 @@ def test_the_weights_table_reads_as_the_medium_does(mi, tmp_path):
                "to_world": volume["to_world"]}
     (obj,) = find_translucent_objects(mi, mi.load_dict(_sphere(mi, volume, sigma_t, scale)))
     classes = obj.classes
-    assert classes.table is not None and len(classes.table[0]) >= 4096
+    assert classes.table is not None and classes.table[0].n >= 4096
     position, normal, _ = sample_surface(obj.shape, 20000, seed=7)
     points, normals = (np.asarray(a, dtype=np.float64).reshape(3, -1).T for a in (position, normal))
     tabulated = classes.coordinates(points, normals)

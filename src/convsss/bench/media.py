@@ -61,8 +61,9 @@ def _box_obj(path, sides):
 def _uv_mesh(mi, mesh, path):
     """``mesh`` written to ``path`` (PLY) with texture coordinates projected along z: ``(u, v)`` its (x, y) over
     its bounding box (no seam)."""
-    shape = mi.load_dict({"type": "obj" if str(mesh).endswith(".obj") else "ply", "filename": str(mesh)})
-    params = mi.traverse(shape)
+    from ..scene.quick import load_mesh
+
+    params = mi.traverse(load_mesh(mesh))
     positions = np.asarray(params["vertex_positions"], dtype=np.float64).reshape(-1, 3)
     faces = np.asarray(params["faces"], dtype=np.uint32)
     lo, hi = positions.min(axis=0), positions.max(axis=0)

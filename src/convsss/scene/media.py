@@ -291,9 +291,9 @@ class MediumClasses:
     them (:meth:`weights`): per channel an axis through ``origin`` (3, 2) along ``direction`` (3, 2) with the nodes
     at coordinates ``nodes`` (3, K); ``mean`` the material at the axes' origin (the survey's mean point), what the
     object's single-material quantities read (the plan's summary, single scattering, the entry gain); ``shares``
-    each class's share of the surface (its mean weight over the survey and the channels); ``table`` the surface
-    points (M, 3) mm and their coordinates along the axes (M, 3) that :meth:`weights` reads (None: computed at each
-    point)."""
+    each class's share of the surface (its mean weight over the survey and the channels); ``table`` a k-d tree of
+    surface points (M, 3) mm and their coordinates along the axes (M, 3), what :meth:`weights` reads (None: computed
+    at each point)."""
 
     field: MediumField
     materials: tuple
@@ -308,13 +308,7 @@ class MediumClasses:
         """``(N, 3)``: per channel, the coordinate along its axis of the explored coefficients (Eq. H2) at the
         surface points ``points_mm`` (N, 3) of outward ``normals``."""
         if self.table is not None:
-            from scipy.spatial import cKDTree
-
-            entries, values = self.table
-            tree = self.__dict__.get("_tree")
-            if tree is None:
-                tree = cKDTree(entries)
-                object.__setattr__(self, "_tree", tree)
+            tree, values = self.table
             distance, index = tree.query(np.asarray(points_mm, dtype=np.float64), k=TABLE_NEIGHBOURS, workers=-1)
             weight = 1.0 / np.maximum(distance, 1e-9) ** 2
             return np.einsum("nk,nkc->nc", weight, values[index]) / weight.sum(axis=1, keepdims=True)
@@ -346,12 +340,12 @@ class MediumClasses:
         return out
 
 
-def medium_classes(field, survey_mm, normals, eta, inside_mm=(), surface=None):
+def medium_classes(field, survey_mm, normals, eta, inside_mm=(), surface=None, area_mm2=None):
     """The classes of ``field`` over the surface points ``survey_mm`` (N, 3) of outward ``normals`` (module
     docstring): a :class:`MediumClasses`, or the one :class:`Material` where the coefficients do not vary there nor
     at the points ``inside_mm`` (M, 3) (a constant surface over another core is not homogeneous). ``surface(count)``
-    gives about ``count`` points spread over the surface, ``(points (n, 3) mm, outward normals (n, 3), area mm^2)``,
-    for the table of :meth:`MediumClasses.weights` (None: no table)."""
+    gives about ``count`` points spread over the surface of area ``area_mm2``, ``(points (n, 3) mm, outward normals
+    (n, 3))``, for the table of :meth:`MediumClasses.weights` (None: no table)."""
     constant = field.constant(np.concatenate([survey_mm, np.reshape(inside_mm, (-1, 3))]), eta)
     if constant is not None:
         return constant
@@ -384,10 +378,10 @@ def medium_classes(field, survey_mm, normals, eta, inside_mm=(), surface=None):
     shares = tuple(float(f) for f in weight.mean(axis=(0, 2)))
     table = None
     if surface is not None:
-        _, _, area = surface(SURVEY_POINTS)
+        from scipy.spatial import cKDTree
+
         shortest = min(float(np.min(m.diffusion_length_mm)) for m in materials)
-        count = int(np.clip(area / (TABLE_SPACING * shortest) ** 2, *TABLE_POINTS))
-        points, outward, _ = surface(count)
-        table = (points, classes.coordinates(points, outward))
+        points, outward = surface(int(np.clip(area_mm2 / (TABLE_SPACING * shortest) ** 2, *TABLE_POINTS)))
+        table = (cKDTree(points), classes.coordinates(points, outward))
     return MediumClasses(field, tuple(materials), origin, direction, nodes, _material(origin, eta, field.name),
                          shares, table)

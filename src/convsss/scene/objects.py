@@ -176,9 +176,9 @@ def interior_material(mi, medium, eta, unit_mm, name, shape, to_world, orientati
         points, normal = (np.asarray(a, dtype=np.float64).reshape(3, -1).T for a in (position, normal))
         return points * unit_mm, normal, float(np.sum(area.numpy(), dtype=np.float64)) * unit_mm**2
 
-    survey, normal, _ = surface(SURVEY_POINTS)
+    survey, normal, area = surface(SURVEY_POINTS)
     checked = field.check(survey, bbox_mm)
-    classes = medium_classes(field, survey, normal, eta, checked, lambda count: surface(count, seed=1))
+    classes = medium_classes(field, survey, normal, eta, checked, lambda count: surface(count, seed=1)[:2], area)
     if isinstance(classes, Material):
         return classes, None
     return classes.mean, classes

@@ -134,7 +134,9 @@ def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=Fa
     size_mm = float(size_mm)
     if not math.isfinite(size_mm) or size_mm <= 0:
         raise ConvsssError(f"size_mm={size_mm!r} is not allowed: the object's size must be a length > 0 (mm)")
-    lo, hi = mesh_bounds(mesh)
+    shape = load_mesh(mesh)
+    box = shape.bbox()
+    lo, hi = np.array(list(box.min), dtype=np.float64), np.array(list(box.max), dtype=np.float64)
     extent = float(np.max(hi - lo))
     if extent <= 0:
         raise ConvsssError(f"mesh {str(mesh)!r} is flat or empty: it has no extent")
@@ -179,7 +181,7 @@ def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=Fa
     if color_texture is not None:
         if albedo_volume is not None:
             raise ConvsssError("an albedo volume and a colour texture given: give one")
-        if not load_mesh(mesh).has_vertex_texcoords():
+        if not shape.has_vertex_texcoords():
             raise ConvsssError(f"mesh {str(mesh)!r} has no texture coordinates (uv): a colour texture needs them")
         scene["object"]["interior"] = color_texture_medium(material, color_texture, material.mfp_mm, color_model,
                                                            unit_mm)

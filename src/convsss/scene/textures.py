@@ -109,16 +109,17 @@ def equivalent_medium(mi, named, shapes):
     nearest_cell = distance_transform_edt(~crossed, return_distances=False, return_indices=True)
     nearest = owner[tuple(nearest_cell)].reshape(-1)
     albedo = (sigma_s_prime / sigma_t_prime)[nearest].reshape(*shape, 3)
-    sigma_t = sigma_t_prime[nearest] * named.unit_mm  # per scene unit
-    scale = float(sigma_t.max())
     to_world = mi.ScalarTransform4f().translate(low.tolist()).scale((high - low).tolist())
-    extinction = ({"type": "constvolume", "value": {"type": "rgb", "value": (sigma_t[0] / scale).tolist()},
-                   "to_world": to_world} if named.mfp_texture is None else
-                  {"type": "gridvolume", "to_world": to_world,
-                   "data": mi.TensorXf((sigma_t / scale).reshape(albedo.shape).astype(np.float32))})
     if named.mfp_texture is None:  # one extinction: the homogeneous medium's own values, as medium_dict writes them
         own = medium_parameters(named.material, named.unit_mm)
-        extinction["value"]["value"], scale = own["sigma_t"].tolist(), own["scale"]
+        scale = own["scale"]
+        extinction = {"type": "constvolume", "value": {"type": "rgb", "value": own["sigma_t"].tolist()},
+                      "to_world": to_world}
+    else:
+        sigma_t = sigma_t_prime[nearest] * named.unit_mm  # per scene unit
+        scale = float(sigma_t.max())
+        extinction = {"type": "gridvolume", "to_world": to_world,
+                      "data": mi.TensorXf((sigma_t / scale).reshape(albedo.shape).astype(np.float32))}
     return {"type": "heterogeneous", "scale": scale, "sigma_t": extinction,
             "albedo": {"type": "gridvolume", "data": mi.TensorXf(albedo.astype(np.float32)), "to_world": to_world}}
 
