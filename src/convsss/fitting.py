@@ -6,7 +6,9 @@ a target image of it, find one translucent object's reduced albedo ``alpha'`` an
 object's pixels. SciPy's bounded trust-region least squares (:func:`scipy.optimize.least_squares`, a robust
 ``soft_l1`` loss against highlights) works on ``logit(alpha')`` and ``log(mfp)``; the residual per object pixel
 and channel is ``(s I - T) / (T + f)``, ``f`` 1 % of the target's channel mean, ``s`` the exposure (fitted with
-``fit_exposure``, else 1).
+``fit_exposure``, else 1). With ``fit_eta`` the boundary's relative index is one more variable, ``log(eta - 1)``,
+shared by the channels; it moves the material's ``eta`` (the light's entry and exit, Eqs. 1-2) and the boundary
+BSDF's (its reflection, the highlight) together.
 
 The forward model (:class:`Forward`) reuses what the material does not change: the scene is surveyed and planned
 once, and every evaluation draws the same samples (the same seed and count: the residuals are smooth in the
@@ -25,9 +27,10 @@ import numpy as np
 
 from .errors import ConvsssError
 
-#: Bounds of the fit: reduced albedo and reduced mean free path (mm).
+#: Bounds of the fit: reduced albedo, reduced mean free path (mm) and the boundary's relative index.
 ALBEDO_BOUNDS = (1e-3, 0.9999)
 MFP_BOUNDS_MM = (1e-4, 1e4)
+ETA_BOUNDS = (1.001, 2.5)
 #: The start's mean free path times these, per channel the best kept (:func:`_initial_mfp`).
 MFP_START_FACTORS = (1.0 / 9.0, 1.0 / 3.0, 1.0, 3.0, 9.0)
 #: The relative step of the finite differences, in the fit's variables.
@@ -39,7 +42,8 @@ FLOOR = 0.01
 @dataclasses.dataclass
 class FitResult:
     """What :func:`fit` found: the ``material`` (a :class:`~convsss.materials.Material`), per channel
-    ``reduced_albedo`` and ``mfp_mm`` with their standard deviations, the ``exposure``, the ``render`` (H, W, 3) at
+    ``reduced_albedo`` and ``mfp_mm`` with their standard deviations, ``eta_std`` (NaN unless ``eta`` was fitted),
+    the ``exposure``, the ``render`` (H, W, 3) at
     the fitted material, the object ``mask``, ``history`` (cost per evaluation), ``evaluations``, ``seconds`` and
     ``success`` / ``message`` of the optimizer."""
 
@@ -48,6 +52,7 @@ class FitResult:
     reduced_albedo_std: np.ndarray
     mfp_mm: np.ndarray
     mfp_mm_std: np.ndarray
+    eta_std: float
     exposure: float
     render: np.ndarray
     mask: np.ndarray
@@ -62,7 +67,7 @@ class FitResult:
         return {"material": {"reduced_albedo": self.reduced_albedo.tolist(),
                              "reduced_albedo_std": self.reduced_albedo_std.tolist(),
                              "mfp_mm": self.mfp_mm.tolist(), "mfp_mm_std": self.mfp_mm_std.tolist(),
-                             "eta": float(self.material.eta),
+                             "eta": float(self.material.eta), "eta_std": self.eta_std,
                              "sigma_s_prime_per_mm": self.material.sigma_s_prime.tolist(),
                              "sigma_a_per_mm": self.material.sigma_a.tolist()},
                 "exposure": self.exposure, "evaluations": self.evaluations, "seconds": self.seconds,
@@ -104,6 +109,8 @@ class Forward:
         if not is_model(spec):
             raise ConvsssError(f"translucent shape {self.obj.name!r} renders with the tabulated profile {spec!r}: "
                                "a fit needs a profile model (the integrator's profile parameter)")
+        if material.eta != self.obj.eta:
+            _set_boundary_eta(self.obj.shape, material.eta)
         objects = list(self.integrator.prepared.objects)
         objects[self.index] = self.obj.with_material(material, resolve_profile(spec, material, p.profile_total,
                                                                                p.orders))
@@ -147,8 +154,8 @@ class _Variables:
                 np.concatenate([np.full(3, 25.0), np.full(3, np.log(MFP_BOUNDS_MM[1]))]))
 
 
-def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, seed=0, spp=4, max_evaluations=60,
-        progress=None):
+def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, fit_eta=False, seed=0, spp=4,
+        max_evaluations=60, progress=None):
     """Fit one translucent object's material so that ``scene``'s render matches ``target``; a :class:`FitResult`.
 
     Parameters
@@ -163,9 +170,12 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, s
     mask : (H, W) array_like, optional
         The pixels to match (nonzero); default: where the camera sees the object first.
     start : Material, optional
-        The starting material (default: the scene's).
+        The starting material (default: the scene's); its ``eta`` is the start's with ``fit_eta``, else unused.
     fit_exposure : bool
         Also fit a scale of the render (a photo of unknown exposure).
+    fit_eta : bool
+        Also fit the boundary's relative index (a dielectric or rough dielectric boundary; the scene's BSDF is
+        given its own index back after the fit).
     seed, spp : int
         The renders' seed and samples per pixel (the same for every evaluation).
     max_evaluations : int
@@ -190,12 +200,16 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, s
     named = scene.integrator()
     params = named.params.to_dict() if isinstance(named, ConvsssIntegrator) else {}
     integrator = mi.load_dict({"type": "convsss", **params})
-    every = [o.name for o in find_translucent_objects(mi, scene, integrator.params.unit_mm)]
+    found = {o.name: o for o in find_translucent_objects(mi, scene, integrator.params.unit_mm)}
+    every = list(found)
     if object is None and len(every) > 1:
         raise ConvsssError(f"the scene has {len(every)} translucent objects ({', '.join(every)}): name one to fit "
                            "(--object)")
     if object is not None and object not in every:
         raise ConvsssError(f"no translucent object {object!r}: the scene has {', '.join(every)}")
+    if fit_eta and found[object or every[0]].boundary == "null":
+        raise ConvsssError(f"translucent object {object or every[0]!r} has a null (index-matched) boundary, whose eta "
+                           "is 1: fitting eta needs a dielectric or roughdielectric boundary")
     if mask is not None:
         mask = np.asarray(mask) != 0
         if mask.shape != (height, width):
@@ -212,6 +226,7 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, s
     inside = _object_mask(integrator, forward.index, (height, width)) if mask is None else mask
     base = objects[forward.index].material
     start = base if start is None else start
+    eta0 = float(np.clip(start.eta, *ETA_BOUNDS)) if fit_eta else base.eta
     albedo0 = np.clip(start.albedo_prime, *ALBEDO_BOUNDS)
     mfp0 = np.clip(start.mfp_mm, *MFP_BOUNDS_MM)
     goal = target[inside]
@@ -225,56 +240,73 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, s
 
     variables = _Variables(base.eta)
 
+    # x: logit colour (3), log mfp (3), then log exposure and log(eta - 1) where fitted.
+    exposure_at, eta_at = 6, 6 + int(fit_exposure)
+
     def split(x):
         albedo, mfp = variables.decode(x)
-        return albedo, mfp, (float(np.exp(x[6])) if fit_exposure else 1.0)
+        scale = float(np.exp(x[exposure_at])) if fit_exposure else 1.0
+        return albedo, mfp, scale, (1.0 + float(np.exp(x[eta_at])) if fit_eta else base.eta)
 
     cache = {}
 
-    def render(albedo, mfp):
-        key = (tuple(albedo), tuple(mfp))
+    def render(albedo, mfp, eta):
+        key = (tuple(albedo), tuple(mfp), eta)
         if key not in cache:
             cache.clear()
-            cache[key] = forward(material_of(albedo, mfp, base.eta, base.name))
+            cache[key] = forward(material_of(albedo, mfp, eta, base.name))
         return cache[key]
 
     def residuals(x):
-        albedo, mfp, scale = split(x)
-        r = residual_of(render(albedo, mfp), scale)
+        albedo, mfp, scale, eta = split(x)
+        r = residual_of(render(albedo, mfp, eta), scale)
         history.append(float(0.5 * np.sum(r**2)))
         if progress is not None:
             progress(forward.evaluations, history[-1])
         return r.ravel()
 
     def jacobian(x):
-        albedo, mfp, scale = split(x)
-        here = render(albedo, mfp)[inside]
+        albedo, mfp, scale, eta = split(x)
+        here = render(albedo, mfp, eta)[inside]
         n = here.shape[0]
         columns = np.zeros((n, 3, len(x)))
+
+        def moved(block, width):
+            x_moved = x.copy()
+            x_moved[block:block + width] += STEP
+            a, m, _, e = split(x_moved)
+            return (forward(material_of(a, m, e, base.name))[inside] - here) * scale * weight / STEP
+
         for block in (0, 3):  # every channel's alpha' at once, then every channel's mfp: the channels are apart
-            moved = x.copy()
-            moved[block:block + 3] += STEP
-            a, m = variables.decode(moved)
-            image = forward(material_of(a, m, base.eta, base.name))[inside]
-            derivative = (image - here) * scale * weight / STEP
+            derivative = moved(block, 3)
             for c in range(3):
                 columns[:, c, block + c] = derivative[:, c]
         if fit_exposure:
-            columns[:, :, 6] = scale * here * weight
+            columns[:, :, exposure_at] = scale * here * weight
+        if fit_eta:  # one index for every channel: one more render
+            columns[:, :, eta_at] = moved(eta_at, 1)
         return columns.reshape(n * 3, len(x))
 
-    mfp0 = _initial_mfp(forward, base.eta, albedo0, mfp0, inside, goal, weight)
+    mfp0 = _initial_mfp(forward, eta0, albedo0, mfp0, inside, goal, weight)
     x0 = variables.encode(albedo0, mfp0)
     lower, upper = variables.bounds()
     if fit_exposure:
         x0, lower, upper = np.append(x0, 0.0), np.append(lower, -20.0), np.append(upper, 20.0)
+    if fit_eta:
+        x0 = np.append(x0, np.log(eta0 - 1.0))
+        lower, upper = np.append(lower, np.log(ETA_BOUNDS[0] - 1.0)), np.append(upper, np.log(ETA_BOUNDS[1] - 1.0))
     # Tolerances: the variables (logit alpha', log mfp) to 1e-5, far below what the image's noise constrains.
-    solution = least_squares(residuals, x0, jac=jacobian, bounds=(lower, upper), loss="soft_l1", f_scale=0.1,
-                             x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
-    albedo, mfp, scale = split(solution.x)
-    image = render(albedo, mfp)
+    try:
+        solution = least_squares(residuals, x0, jac=jacobian, bounds=(lower, upper), loss="soft_l1", f_scale=0.1,
+                                 x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
+        albedo, mfp, scale, eta = split(solution.x)
+        image = render(albedo, mfp, eta)
+    finally:
+        if fit_eta:
+            _set_boundary_eta(forward.obj.shape, base.eta)
     std = _deviations(solution, variables, albedo, mfp)
-    return FitResult(material_of(albedo, mfp, base.eta, base.name), albedo, std[0], mfp, std[1], scale,
+    eta_std = float(std[2][eta_at] * (eta - 1.0)) if fit_eta else float("nan")
+    return FitResult(material_of(albedo, mfp, eta, base.name), albedo, std[0], mfp, std[1], eta_std, scale,
                      scale * image, inside, history, forward.evaluations, time.perf_counter() - begun,
                      bool(solution.success), str(solution.message))
 
@@ -297,8 +329,8 @@ def _initial_mfp(forward, eta, albedo, mfp, inside, goal, weight):
 
 def _deviations(solution, variables, albedo, mfp):
     """Standard deviations of alpha' and mfp from the Jacobian at the solution, carried from the fit's variables
-    to ``alpha'`` by a finite difference of :meth:`_Variables.decode`; NaN where the image does not constrain
-    them."""
+    to ``alpha'`` by a finite difference of :meth:`_Variables.decode`, and every variable's own; NaN where the image
+    does not constrain them."""
     jac, r = solution.jac, solution.fun
     dof = max(len(r) - len(solution.x), 1)
     variance = float(np.sum(r**2)) / dof
@@ -310,7 +342,16 @@ def _deviations(solution, variables, albedo, mfp):
     moved = solution.x.copy()
     moved[:3] += STEP
     slope = np.abs(variables.decode(moved)[0] - albedo) / STEP
-    return sd[:3] * slope, sd[3:6] * mfp
+    return sd[:3] * slope, sd[3:6] * mfp, sd
+
+
+def _set_boundary_eta(shape, eta):
+    """Give ``shape``'s boundary BSDF (a dielectric or rough dielectric) the relative index ``eta``."""
+    import mitsuba as mi
+
+    params = mi.traverse(shape)
+    params["bsdf.eta"] = eta
+    params.update()
 
 
 def _object_mask(integrator, index, shape):

@@ -23,9 +23,12 @@ from .options import PROGRESS, output_paths
               help="A PNG or EXR of the film's size: the pixels to match (nonzero). [default: where the camera "
                    "sees the object first]")
 @click.option("--start", metavar="PRESET",
-              help="Start from this preset's reduced albedo and mean free path. [default: the scene's material]")
+              help="Start from this preset's reduced albedo and mean free path (and its eta, with --fit-eta). [default: the scene's material]")
 @click.option("--fit-exposure", is_flag=True,
               help="Also fit one scale of the render: a photo of unknown exposure.")
+@click.option("--fit-eta", is_flag=True,
+              help="Also fit the boundary's relative index (one for every channel; a dielectric or roughdielectric "
+                   "boundary). [default: eta as the scene has it]")
 @click.option("--spp", type=click.IntRange(1), default=4, show_default=True,
               help="Samples per pixel of every evaluation's render.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
@@ -35,10 +38,10 @@ from .options import PROGRESS, output_paths
 @click.option("--check", is_flag=True,
               help="Also write OUT-check.png: the fitted render beside the target, tone-mapped alike.")
 @PROGRESS
-def fit(scene_file, target, output, object_id, mask, start, fit_exposure, spp, seed, max_evaluations, check,
-        progress):
+def fit(scene_file, target, output, object_id, mask, start, fit_exposure, fit_eta, spp, seed, max_evaluations,
+        check, progress):
     """Fit a translucent object's material so that SCENE_FILE renders like TARGET (a linear EXR of the film's
-    size): per channel its reduced albedo and reduced mean free path (eta as the scene has it).
+    size): per channel its reduced albedo and reduced mean free path (eta as the scene has it, unless --fit-eta).
 
     The scene is taken as given: its lights, geometry and camera are what the user modelled of the photo or the
     render TARGET is. The fit matches the object's pixels only (--mask, or where the camera sees it), with a loss
@@ -73,13 +76,14 @@ def fit(scene_file, target, output, object_id, mask, start, fit_exposure, spp, s
     first = None
     if start:
         found = preset(start, warn=False)
-        first = material_of(found.albedo_prime, found.mfp_mm, 1.0, found.name)
+        first = material_of(found.albedo_prime, found.mfp_mm, found.eta, found.name)
 
     def report(evaluation, cost):
         if progress:
             click.echo(f"fit: evaluation {evaluation}, cost {cost:.5g}", err=True)
 
-    result = run_fit(scene, goal, object_id, weights, first, fit_exposure, seed, spp, max_evaluations, report)
+    result = run_fit(scene, goal, object_id, weights, first, fit_exposure=fit_exposure,
+                     fit_eta=fit_eta, seed=seed, spp=spp, max_evaluations=max_evaluations, progress=report)
     _write(result, goal, stem_outputs, check, write_files)
     a, m = result.reduced_albedo, result.mfp_mm
     click.echo(f"fitted reduced albedo {np.round(a, 4).tolist()}, mean free path {np.round(m, 4).tolist()} mm "

@@ -370,8 +370,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     @_one_at_a_time
     def reprepare(self, objects):
         """Stages 1–3 again for the last :meth:`prepare`'s scene, sensor and seed with ``objects`` (the prepared
-        objects, in that order, with other materials: same shapes, same ``eta``), keeping its plan: the same sample
-        count and positions, their irradiance drawn again (a new reduced albedo changes its entry gain). What a fit
+        objects, in that order, with other materials: the same shapes), keeping its plan: the same sample count and
+        positions, their irradiance drawn again (a new reduced albedo changes its entry gain, a new ``eta`` its
+        Fresnel transmittance; a new ``eta`` should be the boundary BSDF's too, which the caller sets). What a fit
         needs between materials (:mod:`convsss.fitting`): the image then changes smoothly with the material, where a new
         :meth:`prepare` would size the samples by the new profile. Returns the new :class:`Shader`."""
         state = self.prepared
@@ -379,10 +380,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             raise ConvsssError("nothing is prepared to redo: call prepare() first")
         every, frame, seen, plan = state.survey
         every = list(every)
-        if len(objects) != len(plan.objects) or not all(
-                new.shape is every[q.index].shape and same_eta(new.eta, every[q.index].eta)
-                for new, q in zip(objects, plan.objects)):
-            raise ConvsssError("reprepare keeps the prepared objects and their eta: call prepare() for other ones")
+        if len(objects) != len(plan.objects) or not all(new.shape is every[q.index].shape
+                                                        for new, q in zip(objects, plan.objects)):
+            raise ConvsssError("reprepare keeps the prepared objects: call prepare() for other ones")
         for new, q in zip(objects, plan.objects):
             every[q.index] = new
         keep = self._keep
