@@ -14,9 +14,12 @@ import time
 import numpy as np
 from tqdm import tqdm
 
-#: The cases: a name, the material (a preset's name, or colour and mfp), the light.
-CASES = (("skin1", "skin1", "points"), ("marble", "marble", "points"), ("ketchup", "ketchup", "points"),
-         ("skin1-env", "skin1", "environment"), ("colour", ((0.7, 0.5, 0.3), 1.5), "points"))
+#: The materials: a name, a preset's name or a colour (the exact total reflectance) and a mean free path (mm).
+MATERIALS = (("milk", "wholemilk"), ("marble", "marble"), ("skin1", "skin1"), ("ketchup", "ketchup"),
+             ("potato", "potato"), ("orange", ((0.7, 0.5, 0.3), 1.5)), ("jade", ((0.4, 0.6, 0.8), 4.0)))
+#: The cases: a name, the material, the light; every material under the point lights, then under the environment.
+CASES = tuple((name, spec, "points") for name, spec in MATERIALS) + tuple(
+    (f"{name}-env", spec, "environment") for name, spec in MATERIALS)
 
 
 def _material(spec):
@@ -42,8 +45,9 @@ def _scene(mi, material, light, width):
 
 def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=4, progress=True):
     """Rows, one per case: ``name``, ``light``, per channel ``truth``, ``start``, ``fitted`` (``albedo`` and
-    ``mfp_mm`` each) and ``error`` (relative), ``evaluations``, ``seconds``, ``reference_noise`` (relative RMS of
-    the two references' difference / sqrt 2), ``fitted_ratio`` and ``truth_ratio`` (mean render / mean target)."""
+    ``mfp_mm`` each), ``error`` and ``std`` (the fit's own standard deviations; both relative), ``evaluations``,
+    ``seconds``, ``reference_noise`` (relative RMS of the two references' difference / sqrt 2), ``fitted_ratio``
+    and ``truth_ratio`` (mean render / mean target)."""
     import convsss
 
     from ..fitting import fit, material_of
@@ -70,6 +74,8 @@ def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=4, progress=True):
                      "fitted": {"albedo": result.reduced_albedo.tolist(), "mfp_mm": result.mfp_mm.tolist()},
                      "error": {"albedo": (result.reduced_albedo / truth.albedo_prime - 1).tolist(),
                                "mfp_mm": (result.mfp_mm / truth.mfp_mm - 1).tolist()},
+                     "std": {"albedo": (result.reduced_albedo_std / result.reduced_albedo).tolist(),
+                             "mfp_mm": (result.mfp_mm_std / result.mfp_mm).tolist()},
                      "evaluations": result.evaluations, "seconds": seconds, "reference_noise": noise.tolist(),
                      "fitted_ratio": (result.render[inside].mean(axis=0) / target.mean(axis=0)).tolist(),
                      "truth_ratio": (at_truth.mean(axis=0) / target.mean(axis=0)).tolist()})
@@ -88,11 +94,13 @@ def fit_table(rows):
         return "/".join(f"{100 * v:+.1f}" for v in values)
 
     lines = ["| case | light | truth albedo; mfp mm | fitted albedo; mfp mm | error albedo; mfp (%) | renders | s | "
-             "fitted / target | truth / target | ref. noise (%) |", "|" + "---|" * 10]
+             "fit's std albedo; mfp (%) | fitted / target | truth / target | ref. noise (%) |", "|" + "---|" * 11]
     for r in rows:
         lines.append(f"| {r['name']} | {r['light']} | {rgb(r['truth']['albedo'])}; {rgb(r['truth']['mfp_mm'])} | "
                      f"{rgb(r['fitted']['albedo'])}; {rgb(r['fitted']['mfp_mm'])} | {pct(r['error']['albedo'])}; "
                      f"{pct(r['error']['mfp_mm'])} | {r['evaluations']} | {r['seconds']:.0f} | "
+                     f"{rgb([100 * v for v in r['std']['albedo']], 1)}; "
+                     f"{rgb([100 * v for v in r['std']['mfp_mm']], 1)} | "
                      f"{rgb(r['fitted_ratio'])} | {rgb(r['truth_ratio'])} | "
                      f"{rgb([100 * v for v in r['reference_noise']], 2)} |")
     return "\n".join(lines)

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import click
 
+from ..bench.fit import CASES as FIT_CASES
 from ..bench.scenes import REFERENCE_POINTS, SCENES
 from .main import cli
 from .options import PROGRESS
@@ -121,9 +122,10 @@ def bench_noise_command(width, spp, passes, as_json, progress):
 
 @bench.command("fit")
 @click.option("--case", "cases", multiple=True,
-              type=click.Choice(["skin1", "marble", "ketchup", "skin1-env", "colour"]),
-              help="A case (repeat for several) [default: all]: the 20 mm bunny in skin1, marble, ketchup under two "
-                   "point lights, skin1 under a constant environment, and a colour (0.7, 0.5, 0.3) at 1.5 mm.")
+              type=click.Choice([c[0] for c in FIT_CASES]),
+              help="A case (repeat for several) [default: all]: the 20 mm bunny in whole milk, marble, skin1, "
+                   "ketchup, potato, an orange colour (0.7, 0.5, 0.3) at 1.5 mm and a jade one (0.4, 0.6, 0.8) at "
+                   "4 mm, under two point lights (NAME) or a constant environment (NAME-env).")
 @click.option("--width", type=click.IntRange(16, 4096), default=128, show_default=True,
               help="Image width and height (square).")
 @click.option("--reference-spp", type=click.IntRange(1), default=1024, show_default=True,
@@ -137,9 +139,9 @@ def bench_fit_command(cases, width, reference_spp, as_json, progress):
     albedo x 0.7 and mean free path x 3; printed: truth, fitted and their errors per channel, the renders and
     seconds of the fit, the fitted render's mean against the target's and the true material's (convsss's bias).
     """
-    from ..bench.fit import CASES, bench_fit, fit_table
+    from ..bench.fit import bench_fit, fit_table
 
-    chosen = tuple(c for c in CASES if not cases or c[0] in cases)
+    chosen = tuple(c for c in FIT_CASES if not cases or c[0] in cases)
     rows = bench_fit(chosen, width, reference_spp, progress=progress)
     click.echo(json.dumps(rows, indent=1) if as_json else fit_table(rows))
 

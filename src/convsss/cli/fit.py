@@ -23,7 +23,8 @@ from .options import PROGRESS, output_paths
               help="A PNG or EXR of the film's size: the pixels to match (nonzero). [default: where the camera "
                    "sees the object first]")
 @click.option("--start", metavar="PRESET",
-              help="Start from this preset's reduced albedo and mean free path (and its eta, with --fit-eta). [default: the scene's material]")
+              help="Start from this preset's reduced albedo and mean free path (and its eta, with --fit-eta). "
+                   "[default: the scene's material]")
 @click.option("--fit-exposure", is_flag=True,
               help="Also fit one scale of the render: a photo of unknown exposure.")
 @click.option("--fit-eta", is_flag=True,
