@@ -43,9 +43,8 @@ FLOOR = 0.01
 class FitResult:
     """What :func:`fit` found: the ``material`` (a :class:`~convsss.materials.Material`), per channel
     ``reduced_albedo`` and ``mfp_mm`` with their standard deviations, ``eta_std`` (NaN unless ``eta`` was fitted),
-    the ``exposure``, the ``render`` (H, W, 3) at
-    the fitted material, the object ``mask``, ``history`` (cost per evaluation), ``evaluations``, ``seconds`` and
-    ``success`` / ``message`` of the optimizer."""
+    the ``exposure``, the ``render`` (H, W, 3) at the fitted material, the object ``mask``, ``history`` (cost per
+    evaluation), ``evaluations``, ``seconds`` and ``success`` / ``message`` of the optimizer."""
 
     material: object
     reduced_albedo: np.ndarray
