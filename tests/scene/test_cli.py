@@ -452,11 +452,11 @@ def _interrupt(args, tmp_path, shown, wait=0.0, sig=signal.SIGINT):
         started += char
     time.sleep(wait)
     proc.send_signal(sig)
-    try:
-        code = proc.wait(timeout=60)
+    try:  # communicate, not wait: the progress bar keeps writing, and a full pipe would block the command
+        rest = proc.communicate(timeout=60)[1]
     finally:
         proc.kill()
-    stderr = started + proc.stderr.read()
+    code, stderr = proc.returncode, started + rest
     expected = (130, "interrupted") if sig == signal.SIGINT else (143, "terminated")
     assert code == expected[0], stderr
     assert "Traceback" not in stderr and stderr.rstrip().endswith(expected[1])
