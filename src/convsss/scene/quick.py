@@ -73,7 +73,12 @@ def mesh_bounds(path):
     lo, hi : numpy.ndarray, shape (3,), float64
         The corners of its bounding box, in the mesh's units.
     """
-    box = load_mesh(path).bbox()
+    return shape_bounds(load_mesh(path))
+
+
+def shape_bounds(shape):
+    """(min, max) corners, float64 (3,) each, of a loaded Mitsuba shape's bounding box."""
+    box = shape.bbox()
     return np.array(list(box.min), dtype=np.float64), np.array(list(box.max), dtype=np.float64)
 
 
@@ -135,8 +140,7 @@ def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=Fa
     if not math.isfinite(size_mm) or size_mm <= 0:
         raise ConvsssError(f"size_mm={size_mm!r} is not allowed: the object's size must be a length > 0 (mm)")
     shape = load_mesh(mesh)
-    box = shape.bbox()
-    lo, hi = np.array(list(box.min), dtype=np.float64), np.array(list(box.max), dtype=np.float64)
+    lo, hi = shape_bounds(shape)
     extent = float(np.max(hi - lo))
     if extent <= 0:
         raise ConvsssError(f"mesh {str(mesh)!r} is flat or empty: it has no extent")
