@@ -7,6 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 import convsss
+from convsss.backend import ordered_kernels
 from convsss.cli import cli
 from convsss.fitting import fit, material_of
 from convsss.image import write_exr
@@ -63,8 +64,10 @@ def test_the_boundary_index_is_fitted_with_the_material(mi):
     """A skin1 bunny behind a dielectric of eta 1.45, fitted from eta 1.35 (the scene's boundary at 1.35 too),
     albedo x 0.95, mfp x 1.3 with fit_eta: the index moves the light's entry and exit and the boundary's BSDF
     together, so the closed loop finds all three; the scene's BSDF has its own index back after. The image is not
-    exactly smooth in eta (paths choose to cross the boundary by its transmittance), so the loop ends near the truth,
-    not on it: measured 0.23 % (eta), 0.28 % (albedo), 0.19 % (mfp); held to twice that."""
+    smooth in the material (the indirect paths' choices at a sample flip as it changes: the samples' irradiance moves
+    in jumps), so where the loop ends depends on the renders' last bits: on all threads, run to run, the index ended
+    0.03 %, 0.23 % and 0.54 % off the truth. The fit runs on one thread here (:func:`ordered_kernels`: the same bits
+    every run): measured 0.027 % (eta), 0.040 % (albedo), 0.061 % (mfp); held to ten times that."""
     from convsss.scene.quick import demo_mesh, quick_scene
 
     def scene(material):
@@ -76,10 +79,11 @@ def test_the_boundary_index_is_fitted_with_the_material(mi):
     target = np.array(convsss.render(scene(truth), seed=0, spp=4))[..., :3]
     start = material_of(truth.albedo_prime * 0.95, truth.mfp_mm * 1.3, 1.35)
     fitted_scene = scene(start)
-    result = fit(fitted_scene, target, start=start, fit_eta=True, spp=4, max_evaluations=80)
-    assert result.material.eta == pytest.approx(1.45, rel=5e-3) and result.eta_std < 0.01
-    np.testing.assert_allclose(result.reduced_albedo, truth.albedo_prime, rtol=6e-3)
-    np.testing.assert_allclose(result.mfp_mm, truth.mfp_mm, rtol=4e-3)
+    with ordered_kernels():
+        result = fit(fitted_scene, target, start=start, fit_eta=True, spp=4, max_evaluations=80)
+    assert result.material.eta == pytest.approx(1.45, rel=2.7e-3) and result.eta_std < 0.01
+    np.testing.assert_allclose(result.reduced_albedo, truth.albedo_prime, rtol=4e-3)
+    np.testing.assert_allclose(result.mfp_mm, truth.mfp_mm, rtol=6e-3)
     etas = [mi.traverse(s)["bsdf.eta"] for s in fitted_scene.shapes() if "bsdf.eta" in mi.traverse(s).keys()]
     assert etas and all(e == pytest.approx(1.35) for e in etas)
 

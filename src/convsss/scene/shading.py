@@ -563,7 +563,11 @@ class Shader:
                 continue
             exitance[mine] = self._hit_exitance(k, transport, points[mine], normals[mine] * obj.orientation,
                                                 faces[mine], self._tables)
-        dr.scatter_add(total, _color(beta * exitance), mi.UInt32(lanes.astype(np.uint32)))
+        # A lane's hits summed here, in their order, then one add per lane: a scatter-add of each hit would add a
+        # lane's hits in the order the threads run, and the image would change in its last bits from run to run.
+        lane, start = np.unique(lanes, return_index=True)
+        summed = np.add.reduceat(beta * exitance, start, axis=0)
+        dr.scatter_add(total, _color(summed), mi.UInt32(lane.astype(np.uint32)))
         return lanes[first].astype(np.int64), exitance[first]
 
     def _emission(self, si, prev_p, prev_n, prev_pdf, prev_delta):
