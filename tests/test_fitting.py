@@ -64,10 +64,10 @@ def test_the_boundary_index_is_fitted_with_the_material(mi):
     """A skin1 bunny behind a dielectric of eta 1.45, fitted from eta 1.35 (the scene's boundary at 1.35 too),
     albedo x 0.95, mfp x 1.3 with fit_eta: the index moves the light's entry and exit and the boundary's BSDF
     together, so the closed loop finds all three; the scene's BSDF has its own index back after. The image is not
-    smooth in the material (the indirect paths' choices at a sample flip as it changes: the samples' irradiance moves
-    in jumps), so where the loop ends depends on the renders' last bits: on all threads, run to run, the index ended
-    0.03 %, 0.23 % and 0.54 % off the truth. The fit runs on one thread here (:func:`ordered_kernels`: the same bits
-    every run): measured 0.027 % (eta), 0.040 % (albedo), 0.061 % (mfp); held to ten times that."""
+    smooth in the material (traced single scattering draws its distance by the material's sigma_t': its points move
+    in and out of the object), so where the loop ends depends on the renders' last bits: on all threads, run to run,
+    the index ended 0.03 %, 0.23 % and 0.54 % off the truth. The fit runs on one thread here (:func:`ordered_kernels`:
+    the same bits every run): measured 0.027 % (eta), 0.040 % (albedo), 0.061 % (mfp); held to ten times that."""
     from convsss.scene.quick import demo_mesh, quick_scene
 
     def scene(material):

@@ -13,8 +13,8 @@ BSDF's (its reflection, the highlight) together.
 The forward model (:class:`Forward`) reuses what the material does not change: the scene is surveyed and planned
 once, and every evaluation draws the same samples (the same seed and count) and their irradiance again for the
 new material (``reprepare``: it depends on ``alpha'`` through the entry gain and on ``sigma_t'`` through the light
-that crosses thin parts; it moves in small jumps with the material, so the residuals are not exactly smooth,
-docs/guide/fit.md). The channels are rendered
+that crosses thin parts; with traced single scattering it moves in small jumps with the material, so the
+residuals are not exactly smooth, docs/guide/fit.md). The channels are rendered
 independently, so one evaluation with every channel's ``alpha'`` moved gives the Jacobian's ``alpha'`` columns of
 all three (and one more its ``mfp`` columns): two evaluations per Jacobian instead of six.
 Uncertainties come from the Jacobian at the solution, ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residuals'

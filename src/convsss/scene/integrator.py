@@ -374,7 +374,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         positions, their irradiance drawn again (a new reduced albedo changes its entry gain, a new ``eta`` its
         Fresnel transmittance; a new ``eta`` should be the boundary BSDF's too, which the caller sets). What a fit
         needs between materials (:mod:`convsss.fitting`): the image then changes nearly smoothly with the material
-        (the samples' indirect light still moves in small jumps), where a new :meth:`prepare` would size the samples
+        (traced single scattering still moves in small jumps), where a new :meth:`prepare` would size the samples
         by the new profile. Returns the new :class:`Shader`."""
         state = self.prepared
         if state is None:
