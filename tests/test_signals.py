@@ -67,6 +67,33 @@ def test_an_interrupt_that_drjit_wrapped_comes_out_as_itself():
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+def test_a_termination_that_drjit_wrapped_twice_comes_out_as_itself():
+    """SIGTERM inside a dr.if_stmt inside a dr.while_loop: two RuntimeErrors around it (the CI failure of 2026-12-04:
+    `convsss render` ended with a traceback and exit 1 instead of `terminated` and 143)."""
+    from convsss.signals import Terminated, mitsuba_render
+
+    with pytest.raises(Terminated):
+        with mitsuba_render():
+            try:
+                try:
+                    raise Terminated
+                except Terminated as error:
+                    raise RuntimeError("dr.if_stmt(): encountered an exception (see above).") from error
+            except RuntimeError as error:
+                raise RuntimeError("dr.while_loop(): encountered an exception (see above).") from error
+
+
+def test_a_runtime_error_that_wraps_no_interrupt_is_raised_as_it_is():
+    from convsss.signals import mitsuba_render
+
+    with pytest.raises(RuntimeError, match="while_loop"):
+        with mitsuba_render():
+            try:
+                raise ValueError("a bug")
+            except ValueError as error:
+                raise RuntimeError("dr.while_loop(): encountered an exception (see above).") from error
+
+
 @pytest.mark.slow
 def test_sigterm_ends_a_process_stuck_in_compiled_code():
     """A process stuck in C (where Python cannot raise Terminated: the helper who reproduced issue 30 found a hung

@@ -35,14 +35,17 @@ def _main_thread():
 def mitsuba_render(integrator=None):
     """Run a Mitsuba render inside; afterwards Python's SIGINT handler is installed again (Mitsuba's may have replaced
     it) and, when ``integrator.should_stop()`` says Mitsuba wound the render down on Ctrl-C, ``KeyboardInterrupt`` is
-    raised instead of returning its partial image; one that Dr.Jit wrapped in a ``RuntimeError`` comes out as
-    itself."""
+    raised instead of returning its partial image; one (or a :class:`Terminated`) that Dr.Jit wrapped in
+    one ``RuntimeError`` per symbolic loop or branch it was raised inside, comes out as itself."""
     previous = signal.getsignal(signal.SIGINT) if _main_thread() else None
     try:
         yield
-    except RuntimeError as error:  # Ctrl-C in Python code that Dr.Jit ran for the render, wrapped by drjit.custom
-        if isinstance(error.__cause__, KeyboardInterrupt):
-            raise error.__cause__.with_traceback(None) from None
+    except RuntimeError as error:  # Ctrl-C in Python code that Dr.Jit ran for the render, wrapped once per level
+        cause = error.__cause__  # of drjit.custom, dr.while_loop and dr.if_stmt it was raised inside
+        while isinstance(cause, RuntimeError):
+            cause = cause.__cause__
+        if isinstance(cause, KeyboardInterrupt):
+            raise cause.with_traceback(None) from None
         raise
     finally:
         if previous is not None:
