@@ -373,9 +373,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         objects, in that order, with other materials: the same shapes), keeping its plan: the same sample count and
         positions, their irradiance drawn again (a new reduced albedo changes its entry gain, a new ``eta`` its
         Fresnel transmittance; a new ``eta`` should be the boundary BSDF's too, which the caller sets). What a fit
-        needs between materials (:mod:`convsss.fitting`): the image then changes nearly smoothly with the material
-        (traced single scattering still moves in small jumps), where a new :meth:`prepare` would size the samples
-        by the new profile. Returns the new :class:`Shader`."""
+        needs between materials (:mod:`convsss.fitting`): the image then changes smoothly with the material where
+        the objects keep one ``sampling`` material (the paths' choices do not move with it), where a new
+        :meth:`prepare` would size the samples by the new profile. Returns the new :class:`Shader`."""
         state = self.prepared
         if state is None:
             raise ConvsssError("nothing is prepared to redo: call prepare() first")

@@ -70,6 +70,9 @@ class TranslucentObject:
     classes : MediumClasses      a heterogeneous interior's classes (:mod:`.media`), None for a homogeneous one;
                                  ``material`` is then their mean
     class_profiles : tuple       the classes' profiles, in their order
+    sampling : Material          the material whose ``sigma_t'`` draws the paths' random choices (Eq. S2's distance,
+                                 Eq. S3's crossing; the estimate stays that of ``material``), None: the object's
+                                 own; a fit keeps the scene's so that the image moves smoothly with ``material``
     """
 
     shape: object
@@ -86,6 +89,7 @@ class TranslucentObject:
     area_mm2: float
     classes: object = None
     class_profiles: tuple = ()
+    sampling: Material = None
 
     @property
     def profiles(self):

@@ -25,8 +25,9 @@ its own shape (Jensen et al. 2001's single-scattering term; ``M`` then carries t
 ``x_t`` at distance ``t`` along the refracted view ray (``t_max`` where it leaves the object), ``L_e`` an emitter
 sample's ``L/pdf`` at ``x_t``, ``s`` the straight distance from ``x_t`` to the boundary towards the emitter, met at
 cosine ``mu_b`` (``mu_b'`` refracted inside: the path inside is ``s mu_b / mu_b'`` long, exact for a plane, and
-``mu_b / mu_b'`` the beam's compression); one distance sample, drawn from one channel's ``sigma_t'`` chosen at random,
-weighted by the channels' mean density (spectral MIS), and one emitter sample per emitter; a ``t`` past ``t_max``
+``mu_b / mu_b'`` the beam's compression); one distance sample, drawn from one channel's ``sigma_t'`` chosen at random
+(the object's sampling material's, ``TranslucentObject.sampling``: its own unless a fit keeps the scene's), weighted
+by the channels' mean density (spectral MIS), and one emitter sample per emitter; a ``t`` past ``t_max``
 is found by the ray towards the emitter, which then does not first leave the object (closed, oriented surfaces). On
 a half-space it is the once-scattered part of Eq. O2, ``alpha' E / (4 pi (mu + mu_0))`` when index-matched. The
 single scattering of light that arrives after a bounce stays in the profile (:class:`.irradiance.Entry`).
@@ -139,6 +140,9 @@ class Shader:
         self.single = params.single_scattering == "traced"
         self.coefficients = [(mi.Color3f(*(obj.material.sigma_t_prime * params.unit_mm).tolist()),
                               mi.Color3f(*(obj.material.sigma_s_prime * params.unit_mm).tolist())) for obj in objects]
+        #: Each object's sigma_t' per scene unit that draws the paths' choices (``TranslucentObject.sampling``).
+        self.sampling = [mi.Color3f(*((obj.sampling or obj.material).sigma_t_prime * params.unit_mm).tolist())
+                         for obj in objects]
         self.ctx = mi.BSDFContext()
         self.ctx_reflect = mi.BSDFContext()
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
@@ -289,13 +293,16 @@ class Shader:
         cos_o = dr.dot(n, wo)
         cos_in = refracted_cosine(eta, cos_o)
         inward = dr.normalize(-wo / eta + (cos_o / eta - cos_in) * n)
-        # The distance: a channel at random, then its exponential; pdf the channels' mean (spectral MIS).
+        # The distance: a channel at random, then its exponential; pdf the channels' mean (spectral MIS). Drawn with
+        # the sampling material's sigma_t' (the estimate is the material's all the same), so that x_t does not move
+        # with the material a fit tries.
+        drawn = self._sampling_extinction(which)
         pick = u_distance * 3.0
         channel = dr.minimum(mi.UInt32(pick), 2)
-        chosen = dr.select(channel == 0, sigma_t[0], dr.select(channel == 1, sigma_t[1], sigma_t[2]))
+        chosen = dr.select(channel == 0, drawn[0], dr.select(channel == 1, drawn[1], drawn[2]))
         t = -dr.log(1.0 - (pick - mi.Float(channel))) / chosen
-        pdf = (sigma_t[0] * dr.exp(-sigma_t[0] * t) + sigma_t[1] * dr.exp(-sigma_t[1] * t)
-               + sigma_t[2] * dr.exp(-sigma_t[2] * t)) / 3.0
+        pdf = (drawn[0] * dr.exp(-drawn[0] * t) + drawn[1] * dr.exp(-drawn[1] * t)
+               + drawn[2] * dr.exp(-drawn[2] * t)) / 3.0
         ray = si.spawn_ray(inward)
         inside = active & (cos_o > 0)  # and x_t in the object: checked below, where the ray to the light leaves it
         it = dr.zeros(mi.Interaction3f, n_lanes)
@@ -482,7 +489,8 @@ class Shader:
 
         Opaque shapes sample their BSDF. On a translucent object's outside the path crosses the object unscattered
         (Eq. S3) with probability ``p = F_t(eta, mu) min(1, T / THROUGH_ROULETTE)``, ``T`` the largest channel of
-        ``e^{-sigma_t' l}`` along the chord the transmitted direction cuts through it, weight ``f / (pdf p)`` (the
+        ``e^{-sigma_t' l}`` along the chord the transmitted direction cuts through it (``sigma_t'`` of the object's
+        sampling material, ``TranslucentObject.sampling``), weight ``f / (pdf p)`` (the
         chord's own ``e^{-sigma_t' l}`` is applied where the ray arrives); else, in ``bsdf`` mode, it takes the
         reflection lobe, weight ``f / (pdf (1 - p))``. Chords longer than :meth:`_reach` are not followed. On the
         far side seen from inside (``leaving``) the boundary's whole BSDF chooses between leaving and reflecting back
@@ -495,7 +503,7 @@ class Shader:
         ray.maxt = self._reach(which)
         chord = self.scene.ray_intersect(ray, translucent & (bs_t.pdf > 0))
         crosses = translucent & (bs_t.pdf > 0) & self._closed(which) & (self.classify(chord)[0] == which)
-        transmittance = dr.max(dr.exp(-self._extinction(which) * chord.t))
+        transmittance = dr.max(dr.exp(-self._sampling_extinction(which) * chord.t))
         p_through = dr.select(crosses, fresnel_transmittance(eta, si.wi.z)
                               * dr.minimum(transmittance / THROUGH_ROULETTE, 1.0), 0.0)
         entering = translucent & (u_through < p_through)
@@ -520,9 +528,9 @@ class Shader:
 
     def _reach(self, which):
         """Per lane, the longest chord through object ``which`` that transmits ``CROSSING_FLOOR`` of the light in its
-        clearest channel (scene units; 0 where none)."""
+        clearest channel (its sampling material's; scene units; 0 where none)."""
         out = dr.zeros(mi.Float, dr.width(which))
-        for k, (extinction, _) in enumerate(self.coefficients):
+        for k, extinction in enumerate(self.sampling):
             out = dr.select(which == k, -math.log(CROSSING_FLOOR) / dr.min(extinction), out)
         return out
 
@@ -530,6 +538,13 @@ class Shader:
         """Per lane, ``sigma_t'`` (per scene unit) of the translucent object ``which`` (0 where none)."""
         out = dr.zeros(mi.Color3f, dr.width(which))
         for k, (extinction, _) in enumerate(self.coefficients):
+            out = dr.select(which == k, extinction, out)
+        return out
+
+    def _sampling_extinction(self, which):
+        """Per lane, the sampling material's ``sigma_t'`` (per scene unit) of the object ``which`` (0 where none)."""
+        out = dr.zeros(mi.Color3f, dr.width(which))
+        for k, extinction in enumerate(self.sampling):
             out = dr.select(which == k, extinction, out)
         return out
 
