@@ -38,6 +38,12 @@ ETA_BOUNDS = (1.001, 2.5)
 MFP_START_FACTORS = (1.0 / 9.0, 1.0 / 3.0, 1.0, 3.0, 9.0)
 #: With ``fit_eta``, the boundary's indices tried beside the start's, the best kept (:func:`_initial_eta`).
 ETA_START_VALUES = (1.2, 1.3, 1.4, 1.5, 1.6)
+#: A fit that ends with a mean free path this factor or more from the one its samples were sized by (the scene's
+#: material's, in a channel) is made again from there, its samples sized by the fitted material
+#: (:meth:`Forward.replan`).
+REPLAN_FACTOR = 1.1
+#: At most this many fits made again so.
+MAX_REPLANS = 3
 #: The relative step of the finite differences, in the fit's variables.
 STEP = 1e-3
 #: The floor of the relative residual, as a share of the target's channel mean (as convsss.compare's).
@@ -101,6 +107,12 @@ class Forward:
         #: The material whose sigma_t' draws every evaluation's paths (``TranslucentObject.sampling``): the
         #: object's as the scene had it, so that the paths' choices do not move with the material tried.
         self.sampling = None
+        self.replanning = False
+
+    def replan(self, material):
+        """From the next evaluation on, the samples are sized by ``material``'s profile (the scene's sized them) and
+        the paths' choices drawn with its sigma_t' (:attr:`sampling`)."""
+        self.sampling, self.replanning = material, True
 
     @property
     def obj(self):
@@ -125,7 +137,8 @@ class Forward:
         # The same samples, their irradiance drawn again: it depends on the reduced albedo (the entry gain) and on
         # sigma_t' too, through the indirect paths that cross the object's thin parts (Eq. S3), so retransport,
         # which keeps it, would leave the image a little off the material (0.5 % on a 20 mm skin1 bunny, mfp x2).
-        self.integrator.reprepare(objects)
+        self.integrator.reprepare(objects, replan=self.replanning)
+        self.replanning = False
         image = np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
         self.evaluations += 1
         self.seconds += time.perf_counter() - start
@@ -311,6 +324,18 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
         solution = least_squares(residuals, x0, jac=jacobian, bounds=(lower, upper), loss="soft_l1", f_scale=0.1,
                                  x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
         albedo, mfp, scale, eta = split(solution.x)
+        planned = base.mfp_mm
+        for _ in range(MAX_REPLANS):
+            # The scene's material sized the samples (their spacing follows its profile) and drew the paths'
+            # choices; far from it, the fit is made again from where it ended, with both the fitted material's.
+            if not np.any(np.abs(np.log(mfp / planned)) > np.log(REPLAN_FACTOR)):
+                break
+            planned = mfp
+            forward.replan(material_of(albedo, mfp, eta, base.name))
+            cache.clear()
+            solution = least_squares(residuals, solution.x, jac=jacobian, bounds=(lower, upper), loss="soft_l1",
+                                     f_scale=0.1, x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
+            albedo, mfp, scale, eta = split(solution.x)
         image = render(albedo, mfp, eta)
     finally:
         if fit_eta:

@@ -454,3 +454,27 @@ def test_a_time_limit_stops_after_the_first_pass_and_refusals(mi, sphere_scene):
     scene = mi.load_dict(sphere_scene(integrator={"passes": 2}, res=16, spp=2))
     with pytest.raises(convsss.ConvsssError, match="passes > 1 needs develop=True"):
         scene.integrator().render(scene, develop=False)
+
+
+@pytest.mark.slow
+def test_reprepare_keeps_the_plan_unless_told_to_make_it_again(mi, sphere_scene):
+    """A material three times denser (its profile a third as wide): reprepare draws as many samples as before, and
+    with replan as many as its profile asks for (measured 16129, then 144400: nine times, the profile's area), which
+    later reprepares keep."""
+    from convsss.materials import Material
+    from convsss.profiles.models import parse_profile_spec, resolve_profile
+
+    scene = mi.load_dict(sphere_scene(material="skin1", res=32, spp=4))
+    integrator, sensor = scene.integrator(), scene.sensors()[0]
+    integrator.prepare(scene, sensor, 0)
+    own, p = integrator.prepared.objects[0], integrator.params
+    before = integrator.stats["samples"]
+    m = own.material
+    dense = Material(m.sigma_s_prime * 3, m.sigma_a * 3, eta=m.eta)
+    denser = own.with_material(dense, resolve_profile(parse_profile_spec(p.profile)[0], dense, p.profile_total,
+                                                      p.orders))
+    counts = []
+    for replan in (False, True, False):
+        integrator.reprepare([denser], replan=replan)
+        counts.append(integrator.stats["samples"])
+    assert counts[0] == before and counts[1] == counts[2] > 4 * before

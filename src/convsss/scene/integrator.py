@@ -368,14 +368,16 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         return self._shader
 
     @_one_at_a_time
-    def reprepare(self, objects):
+    def reprepare(self, objects, replan=False):
         """Stages 1–3 again for the last :meth:`prepare`'s scene, sensor and seed with ``objects`` (the prepared
         objects, in that order, with other materials: the same shapes), keeping its plan: the same sample count and
         positions, their irradiance drawn again (a new reduced albedo changes its entry gain, a new ``eta`` its
         Fresnel transmittance; a new ``eta`` should be the boundary BSDF's too, which the caller sets). What a fit
         needs between materials (:mod:`convsss.fitting`): the image then changes smoothly with the material where
         the objects keep one ``sampling`` material (the paths' choices do not move with it), where a new
-        :meth:`prepare` would size the samples by the new profile. Returns the new :class:`Shader`."""
+        :meth:`prepare` would size the samples by the new profile. With ``replan`` the plan is made again for the new
+        objects (the samples sized by their profiles, :func:`~.plan.plan_samples`), what the camera sees kept.
+        Returns the new :class:`Shader`."""
         state = self.prepared
         if state is None:
             raise ConvsssError("nothing is prepared to redo: call prepare() first")
@@ -386,6 +388,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             raise ConvsssError("reprepare keeps the prepared objects: call prepare() for other ones")
         for new, q in zip(objects, plan.objects):
             every[q.index] = new
+        if replan:
+            plan = plan_samples(state.scene, state.sensor, frame, every, seen, self.params)
         keep = self._keep
         try:
             return self._prepare(state.scene, state.sensor, state.seed, survey=(every, frame, seen, plan))
