@@ -14,9 +14,11 @@ The forward model (:class:`Forward`) reuses what the material does not change: t
 once, and every evaluation draws the same samples (the same seed and count) and their irradiance again for the
 new material (``reprepare``: it depends on ``alpha'`` through the entry gain and on ``sigma_t'`` through the light
 that crosses thin parts). The paths' random choices that depend on the material (the distance of traced single
-scattering, Eq. S2; whether a path crosses a thin part, Eq. S3) are drawn with the scene's own material throughout
-(``TranslucentObject.sampling``; the estimate is each trial material's), so the image moves smoothly with the
-material instead of in small jumps (docs/guide/fit.md). The channels are rendered
+scattering, Eq. S2; whether a path crosses a thin part, Eq. S3) are drawn with one material for a whole
+least-squares run, the scene's at first (``TranslucentObject.sampling``; the estimate is each trial material's), so
+the image moves smoothly with the material instead of in small jumps (docs/guide/fit.md); a fit that ends far from
+the scene's material is made again with samples sized by the fitted one (:data:`REPLAN_FACTOR`,
+:meth:`Forward.replan`). The channels are rendered
 independently, so one evaluation with every channel's ``alpha'`` moved gives the Jacobian's ``alpha'`` columns of
 all three (and one more its ``mfp`` columns): two evaluations per Jacobian instead of six.
 Uncertainties come from the Jacobian at the solution, ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residuals'
