@@ -140,8 +140,9 @@ def test_the_command_writes_the_material_the_render_and_the_plots(scene_file, tm
 @pytest.mark.slow
 def test_the_forward_model_moves_smoothly_with_the_mean_free_path(mi):
     """Three mean free paths 0.1 % apart: the render's second difference is far below its first, because every
-    evaluation draws the paths' choices with the scene's sigma_t' (``Forward.sampling``). Measured 0.0012 on this
-    24² skin1 bunny behind eta 1.4; 0.36 when traced single scattering drew its distances by the material tried."""
+    evaluation draws the paths' choices with the scene's sigma_t' (``TranslucentObject.sampling``). Measured 0.0012
+    on this 24² skin1 bunny behind eta 1.4; 0.36 when traced single scattering drew its distances by the material
+    tried."""
     from convsss.fitting import Forward
     from convsss.scene.quick import demo_mesh, quick_scene
 

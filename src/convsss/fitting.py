@@ -106,15 +106,13 @@ class Forward:
         self.scene, self.integrator, self.sensor, self.index = scene, integrator, sensor, index
         self.seed, self.spp = seed, spp
         self.evaluations, self.seconds = 0, 0.0
-        #: The material whose sigma_t' draws every evaluation's paths (``TranslucentObject.sampling``): the
-        #: object's as the scene had it, so that the paths' choices do not move with the material tried.
-        self.sampling = None
-        self.replanning = False
+        #: The material the next evaluation sizes the samples by and draws the paths with (:meth:`replan`).
+        self._replan = None
 
     def replan(self, material):
         """From the next evaluation on, the samples are sized by ``material``'s profile (the scene's sized them) and
-        the paths' choices drawn with its sigma_t' (:attr:`sampling`)."""
-        self.sampling, self.replanning = material, True
+        the paths' choices drawn with its sigma_t' (``TranslucentObject.sampling``)."""
+        self._replan = material
 
     @property
     def obj(self):
@@ -132,15 +130,17 @@ class Forward:
                                "a fit needs a profile model (the integrator's profile parameter)")
         if material.eta != self.obj.eta:
             _set_boundary_eta(self.obj.shape, material.eta)
-        self.sampling = self.sampling or self.obj.sampling or self.obj.material
+        # The paths' choices drawn with one material for every evaluation (the scene's, until replan), so that
+        # they do not move with the material tried.
+        sampling = self._replan or self.obj.sampling or self.obj.material
         objects = list(self.integrator.prepared.objects)
         trial = self.obj.with_material(material, resolve_profile(spec, material, p.profile_total, p.orders))
-        objects[self.index] = dataclasses.replace(trial, sampling=self.sampling)
+        objects[self.index] = dataclasses.replace(trial, sampling=sampling)
         # The same samples, their irradiance drawn again: it depends on the reduced albedo (the entry gain) and on
         # sigma_t' too, through the indirect paths that cross the object's thin parts (Eq. S3), so retransport,
         # which keeps it, would leave the image a little off the material (0.5 % on a 20 mm skin1 bunny, mfp x2).
-        self.integrator.reprepare(objects, replan=self.replanning)
-        self.replanning = False
+        self.integrator.reprepare(objects, replan=self._replan is not None)
+        self._replan = None
         image = np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
         self.evaluations += 1
         self.seconds += time.perf_counter() - start
@@ -322,9 +322,12 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
         x0 = np.append(x0, np.log(eta0 - 1.0))
         lower, upper = np.append(lower, np.log(ETA_BOUNDS[0] - 1.0)), np.append(upper, np.log(ETA_BOUNDS[1] - 1.0))
     # Tolerances: the variables (logit alpha', log mfp) to 1e-5, far below what the image's noise constrains.
+    def solve(x):
+        return least_squares(residuals, x, jac=jacobian, bounds=(lower, upper), loss="soft_l1", f_scale=0.1,
+                             x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
+
     try:
-        solution = least_squares(residuals, x0, jac=jacobian, bounds=(lower, upper), loss="soft_l1", f_scale=0.1,
-                                 x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
+        solution = solve(x0)
         albedo, mfp, scale, eta = split(solution.x)
         planned = base.mfp_mm
         for _ in range(MAX_REPLANS):
@@ -335,8 +338,7 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
             planned = mfp
             forward.replan(material_of(albedo, mfp, eta, base.name))
             cache.clear()
-            solution = least_squares(residuals, solution.x, jac=jacobian, bounds=(lower, upper), loss="soft_l1",
-                                     f_scale=0.1, x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
+            solution = solve(solution.x)
             albedo, mfp, scale, eta = split(solution.x)
         image = render(albedo, mfp, eta)
     finally:

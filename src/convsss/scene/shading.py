@@ -296,7 +296,7 @@ class Shader:
         # The distance: a channel at random, then its exponential; pdf the channels' mean (spectral MIS). Drawn with
         # the sampling material's sigma_t' (the estimate is the material's all the same), so that x_t does not move
         # with the material a fit tries.
-        drawn = self._sampling_extinction(which)
+        drawn = self._extinction(which, sampling=True)
         pick = u_distance * 3.0
         channel = dr.minimum(mi.UInt32(pick), 2)
         chosen = dr.select(channel == 0, drawn[0], dr.select(channel == 1, drawn[1], drawn[2]))
@@ -503,7 +503,7 @@ class Shader:
         ray.maxt = self._reach(which)
         chord = self.scene.ray_intersect(ray, translucent & (bs_t.pdf > 0))
         crosses = translucent & (bs_t.pdf > 0) & self._closed(which) & (self.classify(chord)[0] == which)
-        transmittance = dr.max(dr.exp(-self._sampling_extinction(which) * chord.t))
+        transmittance = dr.max(dr.exp(-self._extinction(which, sampling=True) * chord.t))
         p_through = dr.select(crosses, fresnel_transmittance(eta, si.wi.z)
                               * dr.minimum(transmittance / THROUGH_ROULETTE, 1.0), 0.0)
         entering = translucent & (u_through < p_through)
@@ -534,17 +534,11 @@ class Shader:
             out = dr.select(which == k, -math.log(CROSSING_FLOOR) / dr.min(extinction), out)
         return out
 
-    def _extinction(self, which):
-        """Per lane, ``sigma_t'`` (per scene unit) of the translucent object ``which`` (0 where none)."""
+    def _extinction(self, which, sampling=False):
+        """Per lane, ``sigma_t'`` (per scene unit) of the translucent object ``which`` (0 where none): its
+        material's, or with ``sampling`` its sampling material's (:attr:`sampling`)."""
         out = dr.zeros(mi.Color3f, dr.width(which))
-        for k, (extinction, _) in enumerate(self.coefficients):
-            out = dr.select(which == k, extinction, out)
-        return out
-
-    def _sampling_extinction(self, which):
-        """Per lane, the sampling material's ``sigma_t'`` (per scene unit) of the object ``which`` (0 where none)."""
-        out = dr.zeros(mi.Color3f, dr.width(which))
-        for k, extinction in enumerate(self.sampling):
+        for k, extinction in enumerate(self.sampling if sampling else [e for e, _ in self.coefficients]):
             out = dr.select(which == k, extinction, out)
         return out
 
