@@ -82,8 +82,8 @@ def test_the_readme_python_example_runs(tmp_path, monkeypatch):
 def test_the_heterogeneous_example_writes_scenes_that_load_as_varying_media(tmp_path, monkeypatch):
     """examples/heterogeneous.py at 24²: three scene files with their volumes (or colour map) and renders; each
     interior is Mitsuba's heterogeneous medium, read as classes (not one homogeneous material)."""
+    from convsss.pipeline.objects import find_translucent_objects
     from convsss.scene.loading import load_scene
-    from convsss.scene.objects import find_translucent_objects
 
     monkeypatch.setenv("CONVSSS_EXAMPLE_OUT", str(tmp_path))
     monkeypatch.setenv("CONVSSS_EXAMPLE_SIZE", "24")

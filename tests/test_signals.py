@@ -16,7 +16,7 @@ AFTER_RENDER = textwrap.dedent("""
     import os, signal, threading, time
     import convsss
     from convsss.editor import EditSession
-    from convsss.scene.integrator import register
+    from convsss.pipeline.integrator import register
     from convsss.scene.quick import demo_mesh, quick_scene
 
     mi = register()

@@ -12,7 +12,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parent))
 from ratio import convsss, demo_mesh, mask_of, mi, np, quick_scene  # noqa: E402
 
-import convsss.scene.irradiance as IR  # noqa: E402
+import convsss.pipeline.irradiance as IR  # noqa: E402
 from convsss.compare import compare  # noqa: E402
 
 W = int(sys.argv[1])

@@ -20,7 +20,7 @@ import numpy as np
 import convsss
 from convsss.scene.materials import translucent
 from convsss.scene.quick import demo_mesh, quick_scene
-from convsss.scene.reference import render_reference
+from convsss.pipeline.reference import render_reference
 
 mi = convsss.register()
 

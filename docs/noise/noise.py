@@ -76,15 +76,15 @@ def parse(config):
 
 def measure_config(d, config, seeds):
     """:func:`measure` for ``DENSITY:IRRADIANCE:INDIRECT[:EXTRA=V...]``; ``mesh_order=0`` samples meshes by the plain
-    grid (:data:`convsss.scene.irradiance.MESH_STRATIFICATION` off)."""
-    import convsss.scene.irradiance as irradiance
+    grid (:data:`convsss.pipeline.surface.MESH_STRATIFICATION` off)."""
+    import convsss.pipeline.surface as surface
 
     params = parse(config)
-    irradiance.MESH_STRATIFICATION = bool(params.pop("mesh_order", 1))
+    surface.MESH_STRATIFICATION = bool(params.pop("mesh_order", 1))
     try:
         return measure(d, params, seeds)
     finally:
-        irradiance.MESH_STRATIFICATION = True
+        surface.MESH_STRATIFICATION = True
 
 
 def measure(d, params, seeds):

@@ -37,7 +37,7 @@ def register(variant=None):
         mi = convsss.register()
         image = convsss.render(mi.load_file("scene.xml"))   # mi.render, with the integrator's own errors
     """
-    from .scene import register as _register
+    from .pipeline import register as _register
 
     return _register(variant)
 
@@ -58,7 +58,7 @@ def load_scene(source, width=None, height=None):
 def render(scene, *args, **kwargs):
     """``mi.render(scene, ...)``, raising the integrator's own exception (e.g. a :class:`ConvsssError` with its
     one-line message) where ``mi.render`` raises ``drjit.custom(...) ... (see above)``."""
-    from .scene import render as _render
+    from .pipeline import render as _render
 
     return _render(scene, *args, **kwargs)
 

@@ -209,8 +209,8 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     """
     from scipy.optimize import least_squares
 
-    from .scene.integrator import ConvsssIntegrator, register
-    from .scene.objects import find_translucent_objects
+    from .pipeline.integrator import ConvsssIntegrator, register
+    from .pipeline.objects import find_translucent_objects
 
     mi = register()
     sensor = scene.sensors()[0]

@@ -51,13 +51,17 @@ def _coefficients(name, value):
     return arr
 
 
+#: The relative index of refraction of a material that names none (a dielectric boundary of skin, milk, wax).
+DEFAULT_ETA = 1.3
+
+
 @dataclass(frozen=True, eq=False)
 class Material:
     """A homogeneous medium in the reduced form the dipole needs. Coefficients in 1/mm, RGB."""
 
     sigma_s_prime: np.ndarray
     sigma_a: np.ndarray
-    eta: float = 1.3
+    eta: float = DEFAULT_ETA
     name: str = "custom"
 
     def __post_init__(self):
@@ -72,12 +76,12 @@ class Material:
 
     # --- constructors -------------------------------------------------------------------------------------------
     @classmethod
-    def from_reduced(cls, sigma_s_prime, sigma_a, eta=1.3, name="custom"):
+    def from_reduced(cls, sigma_s_prime, sigma_a, eta=DEFAULT_ETA, name="custom"):
         """From reduced scattering ``sigma_s'`` and absorption ``sigma_a`` (1/mm)."""
         return cls(sigma_s_prime, sigma_a, eta, name).warn_if_thin()
 
     @classmethod
-    def from_scattering(cls, sigma_s, sigma_a, g=0.0, eta=1.3, name="custom"):
+    def from_scattering(cls, sigma_s, sigma_a, g=0.0, eta=DEFAULT_ETA, name="custom"):
         """From scattering ``sigma_s``, absorption and the phase function's mean cosine ``g``.
 
         ``sigma_s' = sigma_s (1 - g)`` (the similarity relation).

@@ -1,15 +1,8 @@
-"""The renderer's tiny scenes (``tests/scene/conftest.py``) for the editor's tests, and a running editor server."""
+"""An edit session of the renderer's tiny scenes (``tests/conftest.py``), and a running editor server."""
 
-import importlib.util
 import threading
-from pathlib import Path
 
 import pytest
-
-_spec = importlib.util.spec_from_file_location("_scene_fixtures", Path(__file__).parents[1] / "scene" / "conftest.py")
-_scene_fixtures = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(_scene_fixtures)
-mi, sphere_scene = _scene_fixtures.mi, _scene_fixtures.sphere_scene
 
 
 @pytest.fixture
@@ -17,9 +10,9 @@ def session(mi, sphere_scene):
     """``session(render=None, **scene_options)`` -> an EditSession of a 32x32, 1 spp sphere scene (``render``: render
     parameters instead of the defaults)."""
     from convsss.editor import EditSession
-    from convsss.scene.integrator import register, scene_parameters
+    from convsss.pipeline.integrator import register, scene_parameters
+    from convsss.pipeline.params import RenderParams
     from convsss.scene.loading import load_scene
-    from convsss.scene.params import RenderParams
 
     def make(render=None, **options):
         register()

@@ -27,7 +27,7 @@ def test_new_coefficients_rebuild_the_transport_on_the_same_samples(session):
     assert state["version"] == version + 1 and state["material"]["sigma_a"] == [0.3, 0.3, 0.3]
     assert np.mean(s.image) < np.mean(before)  # more absorption: darker
     # The scene holds the new medium too.
-    from convsss.scene.objects import find_translucent_objects
+    from convsss.pipeline.objects import find_translucent_objects
 
     found = find_translucent_objects(s.mi, s.scene)[0].material
     assert np.allclose(found.sigma_a, 0.3, rtol=1e-5) and np.allclose(found.sigma_s_prime, s.material.sigma_s_prime)

@@ -30,8 +30,8 @@ def test_errors_are_one_line(tmp_path):
 def test_translucent_meshes_of_one_material_stay_separate_objects(mi, sphere_scene):
     """Mitsuba merges meshes sharing a BSDF and medium by default; two milk cubes must stay two objects."""
     import convsss
+    from convsss.pipeline.objects import find_translucent_objects
     from convsss.scene.materials import translucent
-    from convsss.scene.objects import find_translucent_objects
 
     T = mi.ScalarTransform4f
     cubes = {name: translucent({"type": "cube", "to_world": T().translate([x, 0, 0])}, convsss.material("wholemilk"))

@@ -7,11 +7,11 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
+from convsss.pipeline.objects import find_translucent_objects
 from convsss.profiles import model_profile
 from convsss.profiles.models import COLOR_MODELS, color_of
 from convsss.scene.loading import load_scene
 from convsss.scene.materials import boundary_dict
-from convsss.scene.objects import find_translucent_objects
 from convsss.scene.presets import ColorModelWarning, forget, named_medium, named_medium_of
 from convsss.scene.xmlwriter import scene_to_xml
 
@@ -101,7 +101,7 @@ def test_colour_in_xml_forms(mi, tmp_path, sphere_scene):
 def test_mitsuba_users_path_renders_with_volpathmis_and_convsss(mi, tmp_path, sphere_scene, object_mask):
     """mi.load_file after convsss.register(): the medium is Mitsuba's homogeneous one, which volpathmis renders; the
     convsss integrator renders the same scene."""
-    from convsss.scene.reference import reference_integrator
+    from convsss.pipeline.reference import reference_integrator
 
     scene_dict = _named(sphere_scene(res=32, spp=4), {"preset": "skin1"})
     path = tmp_path / "skin.xml"

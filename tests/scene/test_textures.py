@@ -11,11 +11,11 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
+from convsss.pipeline.media import CLASS_STEP, MediumField
+from convsss.pipeline.objects import find_translucent_objects
 from convsss.profiles.models import albedo_from_reflectance
 from convsss.scene.loading import load_scene
 from convsss.scene.materials import boundary_dict
-from convsss.scene.media import CLASS_STEP, MediumField
-from convsss.scene.objects import find_translucent_objects
 from convsss.scene.presets import TextureWarning, named_medium_of
 
 RADIUS = 10.0

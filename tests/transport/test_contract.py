@@ -143,8 +143,8 @@ def test_the_sample_area_is_the_profile_s_unless_the_transport_sums_it_otherwise
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_planned_bytes_are_known_before_the_samples_and_bound_what_is_built(kind):
-    """A plan (:mod:`convsss.scene.plan`) asks a transport what it will hold from the samples' bounds alone, before any
-    sample exists: a number >= 0, at least the structures the built transport holds (the multiscale far-field
+    """A plan (:mod:`convsss.pipeline.plan`) asks a transport what it will hold from the samples' bounds alone, before
+    any sample exists: a number >= 0, at least the structures the built transport holds (the multiscale far-field
     spectra, the convolution's layers) and not many times more."""
     cls = TRANSPORTS[kind]
     skin = model_profile("dipole", material("skin1"))

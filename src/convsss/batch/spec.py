@@ -169,7 +169,7 @@ def _scene_problems(jobs):
     files = {f for f in files if Path(f).is_file()}
     if not files:
         return []
-    from ..scene.integrator import register
+    from ..pipeline.integrator import register
     from ..scene.loading import load_scene
 
     register()

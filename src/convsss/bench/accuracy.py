@@ -3,7 +3,7 @@
 What is measured, per scene:
 
 1. **Inputs, once.** The scene's translucent object is prepared by the integrator's own path
-   (:meth:`~convsss.scene.integrator.ConvsssIntegrator.prepare` with ``downsample = 1``): stratified irradiance
+   (:meth:`~convsss.pipeline.integrator.ConvsssIntegrator.prepare` with ``downsample = 1``): stratified irradiance
    samples over its whole surface (``sample_density`` per full-resolution pixel footprint, as a render) with their
    irradiance (paper Eq. 2). The **visible points** are the first hits on that object of one camera ray through each
    pixel centre. Every transport gets exactly these samples and these points.

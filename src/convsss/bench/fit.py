@@ -51,7 +51,7 @@ def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=4, progress=True):
     import convsss
 
     from ..fitting import fit, material_of
-    from ..scene.reference import render_reference
+    from ..pipeline.reference import render_reference
 
     mi = convsss.register()
     rows = []

@@ -102,7 +102,7 @@ def cases(materials=MATERIALS, emitters=EMITTERS, boundaries=BOUNDARIES):
 def light_case(material, boundary, emitter, folder, radius=RADIUS_MM, resolution=32, spp=64, reference_spp=256):
     """One case rendered in this process (convsss seeds 1 and 2, volpathmis 3 and 4): its :class:`LightCase`."""
     from .. import register
-    from ..scene.reference import reference_integrator, translucent_pixels
+    from ..pipeline.reference import reference_integrator, translucent_pixels
 
     mi = register()
     light = emitter_dict(emitter, radius, write_envmap(folder / "sky.exr"))

@@ -36,7 +36,7 @@ def pixel_noise(a, b, inside):
 
 def _scene(mi, width, spp, passes, aovs="mask"):
     from ..materials import material
-    from ..scene.params import RenderParams
+    from ..pipeline.params import RenderParams
     from ..scene.quick import demo_mesh, quick_scene
     from .render import DEMO
 

@@ -76,23 +76,24 @@ def scene_dict(scene, resolution=800):
 
 def prepare_case(scene_dict, sample_density=4.0, seed=0, profile=""):
     """Samples and visible points of the scene's (first) translucent object, prepared by the render's own stages
-    (:func:`~convsss.scene.plan.plan_samples`, :func:`~convsss.scene.lighting.light_samples`: the same sample counts,
-    direct and indirect irradiance), its profile chosen by ``profile`` (the integrator's ``profile`` parameter;
+    (:func:`~convsss.pipeline.plan.plan_samples`, :func:`~convsss.pipeline.lighting.light_samples`: the same sample
+    counts, direct and indirect irradiance), its profile chosen by ``profile`` (the integrator's ``profile`` parameter;
     empty: the default model), at the render's defaults but ``sample_density``.
 
     Returns a dict: ``samples`` (IrradianceSamples), ``points`` (K, 3) mm, their outward ``normals`` (the visible
-    pixel centres of :func:`~convsss.scene.camera.first_hits`), ``profile``, ``frame`` (ViewFrame), ``cell_size``
+    pixel centres of :func:`~convsss.pipeline.camera.first_hits`), ``profile``, ``frame`` (ViewFrame), ``cell_size``
     (mm, the pixel footprint at the object), ``object`` (its summary and plan) and ``prepare_s`` (seconds).
     """
     from ..backend import load_mitsuba
     from ..errors import ConvsssError
+    from ..pipeline.camera import first_hits, sensor_frame
+    from ..pipeline.lighting import light_samples
+    from ..pipeline.objects import find_translucent_objects
+    from ..pipeline.params import RenderParams
+    from ..pipeline.path_tracer import PathTracer
+    from ..pipeline.plan import plan_samples
     from ..samples import IrradianceSamples
-    from ..scene.camera import first_hits, sensor_frame
-    from ..scene.lighting import light_samples
     from ..scene.loading import load_scene
-    from ..scene.objects import find_translucent_objects
-    from ..scene.params import RenderParams
-    from ..scene.plan import plan_samples
 
     mi = load_mitsuba()
     start = time.perf_counter()
@@ -106,7 +107,7 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0, profile=""):
     plan = plan_samples(scene, sensor, frame, [obj], [seen], params)
     if not plan.objects:
         raise ConvsssError("the benchmark scene's object is not visible from its camera")
-    lighting = light_samples(scene, [obj], plan, params, seed)
+    lighting = light_samples(scene, [obj], plan, params, seed, PathTracer(scene, [obj], params))
     s, (q,) = lighting.samples[0], plan.objects
     samples = IrradianceSamples(s.position, s.area, lighting.irradiance[0], s.normal)
     width, height = (int(x) for x in sensor.film().crop_size())

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .main import cli
-from .options import PROGRESS
+from .options import PROGRESS, dask_options
 
 
 @cli.command()
@@ -15,12 +15,7 @@ from .options import PROGRESS
 @click.option("-o", "--output", "out", required=True, type=click.Path(file_okay=False),
               help="The batch's folder: jobs/ID/ per job (image.exr, image.png, stats.json, job.json), "
                    "manifest.json and manifest.csv, contact_sheet.png, turntable*.png.")
-@click.option("--workers", type=click.IntRange(1), default=None,
-              help="Worker processes of the local cluster, one job at a time each, the machine's memory shared "
-                   "out among them. [default: the machine's cores]")
-@click.option("--scheduler", metavar="tcp://HOST:PORT",
-              help="Submit to a running Dask scheduler instead of starting a local cluster (its workers need "
-                   "convsss and the scenes' files at the same paths).")
+@dask_options("the jobs", "the machine's cores")
 @click.option("--retries", type=click.IntRange(0), default=3, show_default=True,
               help="How many times a job whose worker dies (killed, out of memory) runs again elsewhere before it "
                    "is marked failed.")

@@ -40,7 +40,7 @@ def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, f
     from ..backend import load_mitsuba
     from ..editor import EditSession
     from ..editor.server import EditorServer
-    from ..scene.integrator import scene_parameters
+    from ..pipeline.integrator import scene_parameters
 
     load_mitsuba()
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width or 256, height or 256, color,

@@ -7,7 +7,7 @@ import click
 
 from ..files import check_outputs
 from .main import cli
-from .options import PROGRESS
+from .options import PROGRESS, dask_options
 
 
 @cli.command()
@@ -17,12 +17,8 @@ from .options import PROGRESS
 @click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False), default="out/figures", show_default=True,
               help="Output folder: one sub-folder per figure, report.md, figures.json; references cached in "
                    "OUT/cache and reused by the next run.")
-@click.option("--workers", type=click.IntRange(1), default=None,
-              help="Render the references first on a local Dask cluster of this many worker processes (the panels "
-                   "then render here one at a time: their seconds are part of the figures).")
-@click.option("--scheduler", metavar="tcp://HOST:PORT",
-              help="Render the references first on a running Dask scheduler's workers (convsss installed there, "
-                   "OUT reachable at the same path).")
+@dask_options("the path-traced references, rendered first (the panels then render here one at a time: their "
+              "seconds are part of the figures)", "none, all here")
 @PROGRESS
 def figures(quick, only, out_dir, workers, scheduler, progress):
     """Regenerate the paper's figures: per figure a contact sheet PNG (captions: parameters, seconds,

@@ -67,7 +67,7 @@ def fit(scene_file, target, output, object_id, mask, start, fit_exposure, fit_et
     from ..fitting import fit as run_fit
     from ..fitting import material_of
     from ..materials import material as preset
-    from ..scene.integrator import register
+    from ..pipeline.integrator import register
     from ..scene.loading import load_scene, scene_inputs
 
     register()

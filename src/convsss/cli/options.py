@@ -11,6 +11,8 @@ import click
 
 from ..errors import ConvsssError
 from ..image import TONEMAPS, check_tonemap
+from ..materials import DEFAULT_ETA
+from ..scene.quick import HEIGHT, SPP, WIDTH
 
 #: ``--progress/--no-progress``: every command that takes more than a moment shows a bar on stderr.
 PROGRESS = click.option("--progress/--no-progress", default=True, show_default=True,
@@ -44,6 +46,29 @@ MODEL_NAMES = ("dipole", "better-dipole", "pbd", "burley")
 COLOR_MODEL_NAMES = ("exact", *MODEL_NAMES)
 
 
+#: ``--color-model``: what a colour is the total reflectance of (every command that takes ``--color``).
+COLOR_MODEL = click.option(
+    "--color-model", type=click.Choice(COLOR_MODEL_NAMES),
+    help="With --color: what --color is the total reflectance of: exact, the half-space of the medium by exact "
+         "radiative transfer, which every profile model renders with --profile-total exact (the default); or one "
+         "model's own total (give the model you render with --profile-total model). Render and reference must use "
+         "the same. [default: exact]")
+
+
+def dask_options(runs, default_workers):
+    """``--workers`` and ``--scheduler``: where ``runs`` (the work past this process) runs, a local Dask cluster of
+    ``--workers`` processes or a running scheduler's workers (``default_workers``: the help's word on no option)."""
+    options = [
+        click.option("--workers", type=click.IntRange(1), default=None,
+                     help=f"Worker processes of a local Dask cluster for {runs}, one job at a time each, the "
+                          f"machine's memory shared out among them. [default: {default_workers}]"),
+        click.option("--scheduler", metavar="tcp://HOST:PORT",
+                     help=f"A running Dask scheduler whose workers take {runs} instead (they need convsss, and "
+                          "the scenes' and outputs' files at the same paths)."),
+    ]
+    return lambda func: _decorate(func, options)
+
+
 def color_options(func):
     """``--color``, ``--mfp-mm``, ``--eta`` and ``--color-model``: a material by colour and distance, the alternative
     to ``--material`` (shared by the commands that take ``--material``; :func:`source_material`)."""
@@ -55,12 +80,8 @@ def color_options(func):
                      help="With --color: the reduced mean free path 1/sigma_t' in mm, one number or one per channel."),
         click.option("--eta", type=float,
                      help="With --color: the relative index of refraction of a dielectric boundary (a null boundary "
-                          "is eta 1). [default: 1.3]"),
-        click.option("--color-model", type=click.Choice(COLOR_MODEL_NAMES),
-                     help="With --color: what --color is the total reflectance of: exact, the half-space of the "
-                          "medium by exact radiative transfer, which every profile model renders with "
-                          "--profile-total exact (the default); or one model's own total (give the model you render "
-                          "with --profile-total model). Render and reference must use the same. [default: exact]"),
+                          f"is eta 1). [default: {DEFAULT_ETA}]"),
+        COLOR_MODEL,
     ]
     return _decorate(func, options)
 
@@ -81,8 +102,9 @@ def source_material(material, color, mfp_mm, eta, color_model, boundary):
     is given), for an object with ``boundary``; one-line errors for bad combinations and values.
 
     A colour is inverted by :func:`~convsss.profiles.models.material_from_color` under ``color_model`` (default: the
-    exact total) at ``eta`` (default 1.3; 1 on a ``null`` boundary, which is index-matched). No
-    :class:`~convsss.materials.OpticallyThinWarning` here: the scene's object says it once, by its own name.
+    exact total) at ``eta`` (default :data:`~convsss.materials.DEFAULT_ETA`; 1 on a ``null`` boundary, which is
+    index-matched). No :class:`~convsss.materials.OpticallyThinWarning` here: the scene's object says it once, by
+    its own name.
     """
     from ..materials import material as lookup_material
     from ..profiles.models import DEFAULT_COLOR_MODEL, material_from_color
@@ -100,7 +122,7 @@ def source_material(material, color, mfp_mm, eta, color_model, boundary):
                            f"{'--mfp-mm' if color is not None else '--color'}: a material by colour needs both")
     if boundary == "null" and eta is not None and eta != 1.0:
         raise ConvsssError(f"--eta {eta:g} is not allowed with --boundary null: an index-matched boundary has eta 1")
-    eta = 1.0 if boundary == "null" else (1.3 if eta is None else eta)
+    eta = 1.0 if boundary == "null" else (DEFAULT_ETA if eta is None else eta)
     return material_from_color(parse_triple(color, "--color"), parse_triple(mfp_mm, "--mfp-mm"), eta,
                                color_model or DEFAULT_COLOR_MODEL, name="color", warn=False)
 
@@ -126,8 +148,8 @@ def scene_source_options(func=None, *, preview=False):
     the editor's defaults (a 256² preview at 1 spp, whatever the scene's film)."""
     if func is None:
         return lambda f: scene_source_options(f, preview=preview)
-    size = "default 256 (the scene's film is resized)" if preview else "default: the scene's; 800 with --mesh"
-    spp = "default 1" if preview else "default: the scene's sampler; 16 with --mesh"
+    size = "default 256 (the scene's film is resized)" if preview else f"default: the scene's; {WIDTH} with --mesh"
+    spp = "default 1" if preview else f"default: the scene's sampler; {SPP} with --mesh"
     options = [
         click.argument("scene_file", required=False, type=click.Path(dir_okay=False)),
         click.option("--mesh", type=click.Path(dir_okay=False),
@@ -259,7 +281,7 @@ def _load_source(scene_file, mesh, material, size_mm, floor, boundary, width, he
     from ..scene.quick import demo_mesh, quick_scene
 
     mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)
-    scene = quick_scene(mesh_path, made, size_mm, width or 800, height or 800, floor=floor, boundary=boundary)
+    scene = quick_scene(mesh_path, made, size_mm, width or WIDTH, height or HEIGHT, floor=floor, boundary=boundary)
     return load_scene(scene)
 
 
@@ -290,7 +312,7 @@ def _number(text):
 
 def integrator_options(func):
     """One option per integrator parameter, from its declaration; unset ones keep the scene's (or the default)."""
-    from ..scene.params import integrator_parameters
+    from ..pipeline.params import integrator_parameters
 
     for p, owner in reversed(integrator_parameters()):
         where = f" ({owner} transport)" if owner else ""
@@ -304,7 +326,7 @@ def integrator_options(func):
 
 def render_params(options, base=None):
     """:class:`RenderParams` from the command's options (only those given) over ``base`` (a dict)."""
-    from ..scene.params import RenderParams
+    from ..pipeline.params import RenderParams
 
     values = dict(base or {})
     values.update({name: value for name, value in options.items() if value is not None})

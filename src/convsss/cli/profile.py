@@ -11,8 +11,9 @@ import click
 
 from ..errors import ConvsssError
 from ..files import check_outputs, json_ready, text_writer, write_files
+from ..materials import DEFAULT_ETA
 from .main import cli
-from .options import COLOR_MODEL_NAMES, MODEL_NAMES, PROGRESS, parse_triple
+from .options import COLOR_MODEL, MODEL_NAMES, PROGRESS, parse_triple
 
 MODEL_CHOICE = click.Choice(MODEL_NAMES)
 
@@ -153,23 +154,20 @@ def plot(names, models, output):
               help="Total diffuse reflectance per channel (the surface colour, linear), e.g. 0.8,0.5,0.3.")
 @click.option("--mfp-mm", required=True, metavar="D|R,G,B",
               help="Reduced mean free path 1/sigma_t' in mm, one number or one per channel.")
-@click.option("--eta", type=float, default=1.3, show_default=True, help="Relative index of refraction.")
-@click.option("--model", type=click.Choice(COLOR_MODEL_NAMES), default=None,
-              help="What the colour is the total reflectance of: exact, the half-space of the medium by exact "
-                   "radiative transfer (what every model renders with profile_total exact), or one model's own. "
-                   "[default: exact]")
+@click.option("--eta", type=float, default=DEFAULT_ETA, show_default=True, help="Relative index of refraction.")
+@COLOR_MODEL
 @click.option("--unit-mm", type=float, default=1.0, show_default=True,
               help="mm per scene unit, for the Mitsuba medium parameters.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
-def invert(color, mfp_mm, eta, model, unit_mm, as_json):
+def invert(color, mfp_mm, eta, color_model, unit_mm, as_json):
     """A material from its colour and mean free path (pbrt's reflectance + mfp, Cycles' colour + radius): the
-    sigma_s' and sigma_a (1/mm) whose MODEL profile has that total reflectance, and the Mitsuba homogeneous medium
-    (sigma_t, scale, albedo) that renders it.
+    sigma_s' and sigma_a (1/mm) whose total reflectance (--color-model's) is that colour, and the Mitsuba
+    homogeneous medium (sigma_t, scale, albedo) that renders it.
     """
     from ..profiles.models import DEFAULT_COLOR_MODEL, color_of, material_from_color
     from ..scene.materials import medium_parameters
 
-    model = model or DEFAULT_COLOR_MODEL
+    model = color_model or DEFAULT_COLOR_MODEL
     m = material_from_color(parse_triple(color, "--color"), parse_triple(mfp_mm, "--mfp-mm"), eta, model)
     medium = medium_parameters(m, unit_mm)
     report = {"model": model, "eta": m.eta, "color": color_of(m, model),

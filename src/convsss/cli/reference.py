@@ -9,6 +9,7 @@ import click
 
 from ..errors import ConvsssError
 from ..files import check_outputs, text_writer, write_files
+from ..scene.quick import SPP
 from .main import cli
 from .options import (
     PROGRESS,
@@ -52,7 +53,7 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
     from tqdm import tqdm
 
     from ..image import exr_writer, png_writer
-    from ..scene.reference import BlackPassWarning, render_reference
+    from ..pipeline.reference import BlackPassWarning, render_reference
 
     if pass_spp < 1:
         raise ConvsssError(f"--pass-spp {pass_spp} is not allowed: it must be >= 1")
@@ -65,7 +66,7 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
     scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
                         color_model, light_scale=light_scale, orbit_deg=orbit_deg)
     camera = pick_sensor(scene, sensor)
-    total_spp = spp if spp is not None else (16 if scene_file is None else camera.sampler().sample_count())
+    total_spp = spp if spp is not None else (SPP if scene_file is None else camera.sampler().sample_count())
     lines = progress and not sys.stderr.isatty()  # a log: one line a pass, no carriage returns
     bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress or lines)
     if lines:

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import ConvsssError
 from ..files import check_outputs, json_ready, write_files
+from ..scene.quick import SPP
 from .main import cli
 from .options import (
     PROGRESS,
@@ -138,7 +139,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
     anchor = exposure_anchor(exposure_from, tonemap)
 
     from ..backend import load_mitsuba
-    from ..scene.integrator import scene_parameters
+    from ..pipeline.integrator import scene_parameters
 
     mi = load_mitsuba()
     seconds = {}
@@ -158,7 +159,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         integ = mi.load_dict(params.integrator_dict())
         integ.progress = bar
         camera = pick_sensor(scene, sensor)
-        spp_used = spp if spp is not None else (16 if quick else camera.sampler().sample_count())
+        spp_used = spp if spp is not None else (SPP if quick else camera.sampler().sample_count())
         film = np.array(integ.render(scene, camera, seed=seed, spp=spp_used), dtype=np.float64)
         aovs = integ.aov_names()
         image = np.concatenate([film[..., :3], film[..., film.shape[2] - len(aovs):]], axis=2)  # RGB(A) + AOVs
@@ -203,7 +204,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
 
 def _with_mask(aovs):
     """The ``aovs`` parameter with ``mask`` added (for ``--mask``) unless it names it already."""
-    from ..scene.params import parse_aovs
+    from ..pipeline.params import parse_aovs
 
     names = parse_aovs(aovs)
     return ",".join(names if "mask" in names else (*names, "mask"))

@@ -8,6 +8,8 @@ import click
 
 from ..errors import ConvsssError
 from ..files import check_outputs, write_text
+from ..scene.materials import BOUNDARIES
+from ..scene.quick import HEIGHT, SPP, WIDTH
 from .main import cli
 from .options import color_options, source_material
 
@@ -46,14 +48,14 @@ def mesh_filename(mesh_path, output):
 @click.option("--size-mm", required=True, type=float, help="The object's largest side in mm.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="Scene file to write (default: print to stdout).")
-@click.option("--boundary", type=click.Choice(["dielectric", "roughdielectric", "null"]), default="dielectric",
+@click.option("--boundary", type=click.Choice(BOUNDARIES), default="dielectric",
               show_default=True, help="The object's surface BSDF (null: index-matched, eta = 1).")
 @click.option("--unit-mm", type=float, default=1.0, show_default=True,
               help="mm per scene unit: the medium's sigma_t is written per scene unit.")
 @click.option("--floor", is_flag=True, help="Add a grey floor under the object.")
-@click.option("--width", type=int, default=800, show_default=True, help="Film width in pixels.")
-@click.option("--height", type=int, default=800, show_default=True, help="Film height in pixels.")
-@click.option("--spp", type=int, default=16, show_default=True, help="Samples per pixel of the scene's sampler.")
+@click.option("--width", type=int, default=WIDTH, show_default=True, help="Film width in pixels.")
+@click.option("--height", type=int, default=HEIGHT, show_default=True, help="Film height in pixels.")
+@click.option("--spp", type=int, default=SPP, show_default=True, help="Samples per pixel of the scene's sampler.")
 @click.option("--object-only", is_flag=True,
               help="Write only the object's <shape> element (medium and BSDF inside), to paste into your own scene.")
 @click.option("--volume", type=click.Path(dir_okay=False),
@@ -114,7 +116,7 @@ def scene(mesh, material, color, mfp_mm, eta, color_model, size_mm, output, boun
         raise ConvsssError("no material: give --material NAME, or --color and --mfp-mm")
     if volume is not None:
         from ..backend import load_mitsuba
-        from ..scene.media import check_albedo_grid
+        from ..pipeline.media import check_albedo_grid
 
         load_mitsuba()
         check_albedo_grid(volume)

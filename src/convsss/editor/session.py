@@ -6,8 +6,8 @@ Along the data flow scene -> samples -> irradiance -> transport -> shading (docs
 - ``sigma_s'`` and ``sigma_a`` (given directly, by colour and mean free path, or as a preset of the same ``eta``),
   the profile model and the transport's ``accuracy`` change the profile ``R_d`` of paper Eq. 1 (or how it is summed)
   only: the scene, the samples and their irradiance (Eq. 2, direct and indirect off opaque surfaces) are kept, the
-  transports are built again (:meth:`~convsss.scene.integrator.ConvsssIntegrator.retransport`) and the camera rays
-  shaded again (:meth:`~convsss.scene.integrator.ConvsssIntegrator.render_prepared`);
+  transports are built again (:meth:`~convsss.pipeline.integrator.ConvsssIntegrator.retransport`) and the camera rays
+  shaded again (:meth:`~convsss.pipeline.integrator.ConvsssIntegrator.render_prepared`);
 - ``eta`` changes the Fresnel transmittance ``F_t(eta, w_i)`` at every sample (Eq. 2) and the boundary's reflection:
   the samples are prepared again (same seed: same points) and shaded.
 
@@ -116,8 +116,8 @@ class EditSession:
     """
 
     def __init__(self, scene, params=None, target=None, spp=None, seed=0, sensor=None):
-        from ..scene.integrator import register, scene_parameters
-        from ..scene.params import RenderParams
+        from ..pipeline.integrator import register, scene_parameters
+        from ..pipeline.params import RenderParams
 
         self.mi = register()
         self.scene, self.seed = scene, int(seed)
@@ -247,7 +247,7 @@ class EditSession:
 
     def _update(self, changes):
         """:meth:`update` under the lock; an exception leaves the caller to restore what it changed."""
-        from ..scene.irradiance import keeps_irradiance
+        from ..pipeline.irradiance import keeps_irradiance
 
         start = time.perf_counter()
         model = self.model if changes.get("model") is None else changes["model"]
@@ -314,7 +314,7 @@ class EditSession:
 
     @staticmethod
     def _with(params, **values):
-        from ..scene.params import RenderParams
+        from ..pipeline.params import RenderParams
 
         return RenderParams(**{**params.to_dict(), **values})
 

@@ -1,6 +1,6 @@
 """Rendering for the figures: the ``convsss`` integrator through its Python path (as ``convsss render`` does), and
 the two references, cached: the ``exact`` transport (the direct sum over the same kind of irradiance samples) and
-``volpathmis`` (Mitsuba's volumetric path tracer, :mod:`convsss.scene.reference`).
+``volpathmis`` (Mitsuba's volumetric path tracer, :mod:`convsss.pipeline.reference`).
 
 Seconds: ``seconds`` is the integrator's wall time for the whole image (irradiance samples, transport, shading of
 the camera rays); ``sss_seconds`` is the subsurface part alone, what the paper times as its "simulation of light
@@ -14,8 +14,8 @@ import warnings
 import numpy as np
 
 from ..backend import load_mitsuba
+from ..pipeline.params import RenderParams
 from ..profiles.models import PROFILE_MODELS
-from ..scene.params import RenderParams
 from .scenes import load, scene_dict
 
 #: Integrator parameters every figure panel shares unless it says otherwise (the paper's Phong highlights).
@@ -143,7 +143,7 @@ def path_traced_reference(spec, cache, resolution, spp, pass_spp=16, seed=0, pro
     resolution : int
         Film width and height (pixels).
     spp, pass_spp, seed : int
-        As in :func:`~convsss.scene.reference.render_reference`.
+        As in :func:`~convsss.pipeline.reference.render_reference`.
     progress : bool
         Show a progress bar.
 
@@ -158,7 +158,7 @@ def path_traced_reference(spec, cache, resolution, spp, pass_spp=16, seed=0, pro
     """
     from tqdm import tqdm
 
-    from ..scene.reference import render_reference
+    from ..pipeline.reference import render_reference
 
     def render():
         with warnings.catch_warnings():

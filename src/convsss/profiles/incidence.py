@@ -37,7 +37,7 @@ O2's ``1/(mu + mu_0)``), where the Lambertian Eq. 7 is up to 30 % too dark on a 
 there, for any albedo (docs/history/benchmarks-notebook.md, "Oblique incidence").
 
 **Single scattering on its own** (the renderer's ``single_scattering = traced``: the shader traces it through the
-object's real shape, :mod:`convsss.scene.shading`). Of Eq. O2's radiance, the light scattered once and leaving
+object's real shape, :mod:`convsss.pipeline.path_tracer`). Of Eq. O2's radiance, the light scattered once and leaving
 without an internal reflection is ``alpha'/(4 pi) / (mu + mu_0)`` (``H = 1``); its flux is
 
     rho_1(mu_0) = 2 pi ∫ (1 - F_r(1/eta, mu)) alpha'/(4 pi) mu / (mu + mu_0) dmu,                         (Eq. S1)

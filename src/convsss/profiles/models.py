@@ -14,7 +14,7 @@ from scipy.optimize import brentq
 
 from ..errors import ConvsssError
 from ..fresnel import check_eta, diffuse_transmittance
-from ..materials import Material
+from ..materials import DEFAULT_ETA, Material
 from . import beam_diffusion, better_dipole, burley, dipole  # noqa: F401  (each registers its model)
 from .base import CHANNELS, PROFILE_MODELS, ScaledProfile
 from .incidence import escaped
@@ -196,7 +196,7 @@ def albedo_from_reflectance(model, reflectance, eta):
 #: The table :func:`albedos_from_reflectances` inverts through: this many nodes evenly spaced in the logit of
 #: ``alpha'``, dense at both ends, up to ``1 - alpha' = INVERSE_FLOOR`` (brighter values, rare, are inverted one by
 #: one: the exact total is slow to evaluate there). ``1 - alpha'`` within 3e-4 relative of brentq's root
-#: (``tests/test_profile_models.py``).
+#: (``tests/profiles/test_models.py``).
 INVERSE_NODES = 81
 INVERSE_FLOOR = 1e-5
 
@@ -233,7 +233,7 @@ def albedos_from_reflectances(model, reflectance, eta, where="colour"):
     return out
 
 
-def material_from_color(color, mfp_mm, eta=1.3, model=None, name="custom", warn=True):
+def material_from_color(color, mfp_mm, eta=DEFAULT_ETA, model=None, name="custom", warn=True):
     """A :class:`~convsss.materials.Material` whose total reflectance under ``model`` is ``color`` and whose
     reduced mean free path ``1/sigma_t'`` is ``mfp_mm`` (pbrt's ``reflectance`` + ``mfp``, Cycles' colour + radius).
 

@@ -16,9 +16,9 @@ diffuse_transmittance`); so the measured profile is the exitance per unit transm
 
 Why a tally instead of a camera: a camera path reaches a narrow beam through a smooth dielectric only by chance, and
 a point or directional light not at all (``shared/notes/mitsuba3.md``). The tally is checked against
-``volpathmis`` on the same material in a Mitsuba box (:func:`convsss.scene.reference.volpath_slab_albedo`,
-``tests/test_slab.py``): by reciprocity, a radiance meter looking straight down at a slab under a uniform sky of
-radiance 1 reads the slab's albedo at normal incidence, ``F_r(eta, 1) + F_t(eta, 1) sum W / N``, and, with a black
+``volpathmis`` on the same material in a Mitsuba box (:func:`convsss.pipeline.reference.volpath_slab_albedo`,
+``tests/profiles/test_slab.py``): by reciprocity, a radiance meter looking straight down at a slab under a uniform sky
+of radiance 1 reads the slab's albedo at normal incidence, ``F_r(eta, 1) + F_t(eta, 1) sum W / N``, and, with a black
 disk of radius ``r_1`` just above the surface, ``F_t(eta, 1) sum_{r > r_1} W / N``: the tally's radial distribution,
 through Mitsuba.
 """
@@ -208,7 +208,7 @@ def slab_tally(albedo, eta, photons=1 << 20, seed=0, incidence=1.0):
 def tally_albedo(material, occluder_mm=0.0, photons=1 << 18, seed=0):
     """The slab's albedo at normal incidence per channel from the tally: ``F_r(eta, 1) + F_t(eta, 1) x`` (the escaped
     flux per transmitted flux); with ``occluder_mm > 0``, only ``F_t(eta, 1) x`` for the flux that leaves beyond that
-    radius (what :func:`~convsss.scene.reference.volpath_slab_albedo` reads under a black disk). Within a bin the
+    radius (what :func:`~convsss.pipeline.reference.volpath_slab_albedo` reads under a black disk). Within a bin the
     exits count as uniform in area."""
     out = np.empty(3)
     specular = float(fresnel_reflectance(material.eta, 1.0))

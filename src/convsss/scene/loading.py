@@ -16,9 +16,9 @@ import numpy as np
 
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
-from .integrator import register
+from ..pipeline.integrator import register
+from ..pipeline.objects import check_named_media
 from .meshfiles import check_mesh_file
-from .objects import check_named_media
 from .presets import any_textured_media, equivalents
 from .textures import equivalent_media
 

@@ -56,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConvsssError
-from ..materials import Material
+from ..materials import DEFAULT_ETA, Material
 from ..materials import material as preset_material
 from ..profiles.models import (
     DEFAULT_COLOR_MODEL,
@@ -73,8 +73,6 @@ PLUGIN = "convsss_medium"
 OPTIONS = ("eta", "model", "unit_mm")
 #: The homogeneous medium's own coefficients: not with a preset or a colour.
 COEFFICIENTS = ("sigma_t", "albedo", "scale", "sigma_s", "sigma_a", "sigma_s_prime", "phase", "phase_function")
-#: Index the colour is inverted at when the medium gives no ``eta`` (a preset has its own).
-DEFAULT_ETA = 1.3
 #: Relative difference up to which the boundary's eta (float32 in Mitsuba) is the medium's.
 ETA_TOLERANCE = 1e-5
 

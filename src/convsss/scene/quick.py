@@ -23,6 +23,8 @@ from ..errors import ConvsssError
 from .materials import albedo_volume_dict, translucent
 
 MESH_TYPES = {".obj": "obj", ".ply": "ply", ".serialized": "serialized"}
+#: The quick scene's film and sampler (every command that renders ``--mesh`` without a size): the paper's 800 x 800.
+WIDTH, HEIGHT, SPP = 800, 800, 16
 FOV_DEG = 30.0
 #: An albedo volume's box beyond the object's, each side, as a fraction of the object's size.
 VOLUME_MARGIN = 0.01
@@ -103,7 +105,7 @@ def _look_at(origin, target, up=(0.0, 1.0, 0.0)):
                                           up=list(up))
 
 
-def quick_scene(mesh, material, size_mm, width=800, height=800, spp=16, floor=False, boundary="dielectric",
+def quick_scene(mesh, material, size_mm, width=WIDTH, height=HEIGHT, spp=SPP, floor=False, boundary="dielectric",
                 unit_mm=1.0, integrator=None, albedo_volume=None, color_texture=None, color_model="exact"):
     """The scene dictionary described in the module docstring.
 

@@ -17,8 +17,8 @@ The medium is made as a ``heterogeneous`` medium whose ``albedo`` (and ``sigma_t
 is a ``gridvolume`` over the shape's bounding box (:func:`equivalent_medium`): :data:`GRID_CELLS` cells along its
 longest side; a cell the surface crosses takes Eq. T1 at the surface point nearest its centre (of a dense set), any
 other cell the value of its nearest such cell (within a cell of Eq. T1's nearest point). The scene is loaded again
-with it (:func:`~convsss.scene.loading.load_scene`), so that convsss renders it through :mod:`.media` as any
-heterogeneous interior, and ``volpathmis`` (``convsss reference``) renders the very same medium as ground truth.
+with it (:func:`~convsss.scene.loading.load_scene`), so that convsss renders it through :mod:`convsss.pipeline.media`
+as any heterogeneous interior, and ``volpathmis`` (``convsss reference``) renders the very same medium as ground truth.
 Detail of the texture finer than a cell is blurred over a cell (a 20 mm object: 0.2 mm), and the surface's colour
 is read from the grid by trilinear interpolation.
 """
@@ -26,10 +26,10 @@ is read from the grid by trilinear interpolation.
 import numpy as np
 
 from ..errors import ConvsssError
+from ..pipeline.objects import scene_surfaces, world_bbox
+from ..pipeline.surface import surface_square
 from ..profiles.models import albedos_from_reflectances
-from .irradiance import surface_square
 from .materials import medium_parameters
-from .objects import scene_surfaces, world_bbox
 from .presets import forget, named_medium_of, texture_values
 
 #: Cells of the grid along the box's longest side (each other side in proportion, at least 2).

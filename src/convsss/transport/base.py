@@ -72,13 +72,13 @@ class Transport:
     def planned_bytes(cls, bounds, profile, count, params):
         """Bytes this transport will hold, beyond the samples, for ``count`` samples within ``bounds`` (2, 3) mm of
         the camera's view frame, under ``params``: known before any sample is drawn, so that a render is refused
-        before any work (:mod:`convsss.scene.plan`). None by default."""
+        before any work (:mod:`convsss.pipeline.plan`). None by default."""
         return 0
 
     @classmethod
     def sample_area(cls, profile, params):
         """The area (mm^2) over which this transport's sum of Eq. 1 averages its samples under ``params``: the
-        renderer draws ``profile_samples`` samples per such area (:func:`~convsss.scene.irradiance.sample_count`).
+        renderer draws ``profile_samples`` samples per such area (:func:`~convsss.pipeline.irradiance.sample_count`).
         The profile's smallest :meth:`~convsss.profiles.Profile.effective_area` by default."""
         return float(np.min(profile.effective_area()))
 

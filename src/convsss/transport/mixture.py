@@ -1,6 +1,6 @@
 """Light in a medium that varies in space: a transport per class of the medium, mixed at both ends.
 
-A heterogeneous interior is split into K homogeneous classes (:mod:`convsss.scene.media`), each with its profile
+A heterogeneous interior is split into K homogeneous classes (:mod:`convsss.pipeline.media`), each with its profile
 ``R_k``, and every point ``x`` of the surface between them by weights ``w_k(x)`` (per channel, summing to 1). Light
 entering at ``x_i`` spreads by the profiles of its own classes, light leaving at ``x`` by those of the point's;
 reciprocity asks for both alike, so Eq. 1 becomes their mean,

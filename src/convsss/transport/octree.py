@@ -25,20 +25,7 @@ import numba
 import numpy as np
 
 from ..errors import ConvsssError
-
-#: Bits of the Morton code per axis (3 x 21 = 63 bits in a uint64).
-MORTON_BITS = 21
-
-
-def _spread_bits(v):
-    """Insert two zero bits between each of the low 21 bits of ``v`` (uint64): bit k moves to bit 3k."""
-    v = v & np.uint64(0x1FFFFF)
-    v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
-    v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
-    v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
-    v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
-    v = (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
-    return v
+from ..morton import MORTON_BITS, interleave
 
 
 def morton_codes(positions):
@@ -59,8 +46,7 @@ def morton_codes(positions):
     extent = float(np.max(positions.max(axis=0) - lo))
     scale = (2**MORTON_BITS - 1) / extent if extent > 0 else 0.0
     cells = np.floor((positions - lo) * scale).astype(np.uint64)
-    return _spread_bits(cells[:, 0]) | (_spread_bits(cells[:, 1]) << np.uint64(1)) | \
-        (_spread_bits(cells[:, 2]) << np.uint64(2))
+    return interleave(cells)
 
 
 @numba.njit(cache=True)

@@ -1,0 +1,70 @@
+import pytest
+
+from convsss.errors import ConvsssError
+from convsss.pipeline.params import RenderParams
+
+
+def test_defaults_are_the_papers_layers_and_the_multiscale_transport():
+    p = RenderParams()
+    assert (p.layers, p.threshold, p.downsample, p.splat) == (8, 0.001, 1.0, "linear")  # the paper's layers
+    assert p.transport == "multiscale" and p.accuracy == 0.01
+    assert p.integrator_dict()["type"] == "convsss"
+
+
+def test_single_scattering_is_traced_unless_a_models_own_total_holds_it():
+    assert RenderParams().single_scattering == "traced" and RenderParams().orders == "multiple"
+    implied = RenderParams(profile_total="model")
+    assert implied.single_scattering == "profile" and implied.orders == "all"
+    assert RenderParams(**implied.to_dict()).single_scattering == "profile"
+
+
+def test_from_mapping_takes_only_known_names():
+    p = RenderParams.from_properties({"layers": 4, "downsample": 0.5, "unrelated": 1})
+    assert p.layers == 4 and p.downsample == 0.5
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"layers": 1}, "layers=1"),
+    ({"layers": 2.5}, "whole number"),
+    ({"layers": 10000}, "layers=10000 is not allowed: it must be a whole number >= 2 and <= 256"),
+    ({"threshold": -0.1}, "threshold=-0.1"),
+    ({"downsample": 0.3}, "downsample=0.3"),
+    ({"transport": "fft"}, "transport='fft'"),
+    ({"specular": "glossy"}, "specular='glossy'"),
+    ({"splat": "box"}, "splat='box'"),
+    ({"unit_mm": 0}, "unit_mm=0"),
+    ({"max_depth": 0}, "max_depth=0"),
+    ({"irradiance_samples": 0}, "irradiance_samples=0"),
+    ({"profile": "/nonexistent/profile.csv"}, "profile file"),
+    ({"single_scattering": "exact"}, "single_scattering='exact'"),
+    ({"single_scattering": "traced", "profile_total": "model"}, "single_scattering=traced needs profile_total=exact"),
+])
+def test_bad_values_say_what_is_allowed(kwargs, message):
+    with pytest.raises(ConvsssError, match=message):
+        RenderParams(**kwargs)
+
+
+def test_integrator_documents_every_parameter_from_its_declaration():
+    from convsss.pipeline.integrator import ConvsssIntegrator
+
+    doc = ConvsssIntegrator.__doc__
+    for name in RenderParams.names():
+        assert f" * - {name}\n" in doc, name
+    assert "(Default: 8)" in doc and "(Default: 0.05)" in doc
+
+
+def test_a_parameter_of_another_transport_warns_that_it_has_no_effect(mi):
+    """Issue 31: the README's `{"type": "convsss", "layers": 8, "downsample": 0.5}` rendered with the multiscale
+    transport, which ignores both, without a word."""
+    import warnings
+
+    from convsss.pipeline.integrator import register
+    from convsss.pipeline.params import IgnoredParameterWarning
+
+    register()
+    with pytest.warns(IgnoredParameterWarning, match=r"downsample \(convolution transport\), layers \(convolution "
+                                                      r"transport\): not a parameter of the multiscale transport"):
+        mi.load_dict({"type": "convsss", "layers": 8, "downsample": 0.5})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", IgnoredParameterWarning)
+        mi.load_dict({"type": "convsss", "transport": "convolution", "layers": 8, "downsample": 0.5})
