@@ -39,7 +39,7 @@ def test_every_module_the_page_cites_exists():
 
 
 def test_the_stages_are_numbered_as_the_session_runs_them():
-    from convsss.pipeline.session import STAGES
+    from convsss.pipeline import STAGES
 
     text = PAGE.read_text()
     block = text[text.index("## The data flow"):text.index("| stage |")]

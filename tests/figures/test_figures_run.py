@@ -1,7 +1,5 @@
-"""`convsss figures --quick` end to end, as a user runs it, then again to check that references come from the cache.
-
-The whole quick run (every figure, 128² panels) takes about two minutes on 2 cores.
-"""
+"""`convsss figures --quick` end to end, as a user runs it, then again to check that references come from the cache:
+every figure, at the smallest panels that keep the figures' distinctions (:data:`RESOLUTION`)."""
 
 import json
 import math
@@ -15,8 +13,11 @@ from convsss.figures import FIGURES
 from convsss.figures.render import PROFILE_COLUMNS
 from convsss.image import read_image
 
-#: Every test here shares the module's render of the figures (minutes): all of them are slow.
+#: Every test here shares the module's render of the figures: all of them are slow.
 pytestmark = pytest.mark.slow
+#: The panels' side in pixels (``--resolution``; the quick run's own is 128): the exact sums, most of the run's time,
+#: cost the visible points times the samples.
+RESOLUTION = 48
 
 
 def run(*args):
@@ -26,7 +27,7 @@ def run(*args):
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("figures")
-    result = run("figures", "--quick", "--output", out, "--no-progress")
+    result = run("figures", "--quick", "--resolution", RESOLUTION, "--output", out, "--no-progress")
     assert result.exit_code == 0, result.output
     return out, json.loads((out / "figures.json").read_text())
 
@@ -43,7 +44,7 @@ def test_every_sheet_exr_and_the_report_exist(quick_run):
         assert (out / figure["errors_sheet"]).is_file()
         for panel in figure["panels"]:
             image = read_image(out / panel["exr"])
-            assert image.shape == (128, 128, 3) and image.max() > 0
+            assert image.shape == (RESOLUTION, RESOLUTION, 3) and image.max() > 0
             assert (out / panel["png"]).is_file()
     assert (out / "report.md").is_file()
     assert data["cache"]["misses"] > 0
@@ -98,7 +99,7 @@ def test_fig2_counts_fewer_convolutions_for_the_larger_bunny_and_the_larger_thre
 
 def test_second_run_reuses_the_cached_references(quick_run):
     out, _ = quick_run
-    result = run("figures", "--quick", "--only", "fig5", "--output", out, "--no-progress")
+    result = run("figures", "--quick", "--resolution", RESOLUTION, "--only", "fig5", "--output", out, "--no-progress")
     assert result.exit_code == 0, result.output
     data = json.loads((out / "figures.json").read_text())
     assert data["cache"] == {"hits": 2 + len(PROFILE_COLUMNS), "misses": 0, "root": "cache"}

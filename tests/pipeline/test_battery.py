@@ -1,5 +1,7 @@
-"""The reliability battery (issue 9): every emitter type x boundary x transport on a tiny scene, and random valid and
-invalid integrator parameters. Every run ends in a finite, non-negative image or in one line of ConvsssError."""
+"""The reliability battery (issue 9) on a tiny scene (:mod:`convsss.bench.battery`): emitter types x boundaries x
+transports, and random valid and invalid integrator parameters. Every run ends in a finite, non-negative image or in
+one line of ConvsssError. The whole matrix is a benchmark (``convsss bench battery``); here every boundary meets
+every transport, the emitters in turn."""
 
 import numpy as np
 import pytest
@@ -7,49 +9,32 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import convsss
-from convsss.bench.lights import EMITTERS, emitter_dict, write_envmap
+from convsss.bench.battery import battery_table, bench_battery, matrix, pairwise, render_tiny, tiny_scene
+from convsss.bench.lights import EMITTERS, write_envmap
 from convsss.pipeline.params import SPECULARS, RenderParams, available_transports
-from convsss.scene.materials import BOUNDARIES, translucent
+from convsss.scene.materials import BOUNDARIES
 from convsss.transport.convolution import DOWNSAMPLES, SPLATS
 
 
 @pytest.fixture(scope="module")
 def tiny(mi, tmp_path_factory):
-    """``tiny(emitter, boundary, integrator)``: a 1 mm wholemilk sphere, 16x16 pixels, 1 spp, box filter."""
+    """``tiny(emitter, boundary, integrator)``: the battery's scene (a 1 mm wholemilk sphere, 16x16, 1 spp)."""
     envmap = write_envmap(tmp_path_factory.mktemp("env") / "sky.exr")
-    T = mi.ScalarTransform4f
-
-    def make(emitter="point", boundary="null", integrator=None, material="wholemilk"):
-        return mi.load_dict({
-            "type": "scene",
-            "integrator": {"type": "convsss", "sample_density": 1.0, "irradiance_samples": 4, **(integrator or {})},
-            "sensor": {"type": "perspective", "fov": 35,
-                       "to_world": T().look_at(origin=[0, 1, 5], target=[0, 0, 0], up=[0, 1, 0]),
-                       "film": {"type": "hdrfilm", "width": 16, "height": 16, "rfilter": {"type": "box"}},
-                       "sampler": {"type": "independent", "sample_count": 1}},
-            "object": translucent({"type": "sphere"}, convsss.material(material), boundary=boundary),
-            "floor": {"type": "rectangle", "to_world": T().translate([0, -1, 0]).rotate([1, 0, 0], -90).scale(10)},
-            "light": emitter_dict(emitter, 1.0, envmap),
-        })
-
-    return make
+    return lambda emitter="point", boundary="null", integrator=None: tiny_scene(mi, envmap, emitter, boundary,
+                                                                                 integrator)
 
 
-def _render(scene):
-    image = np.array(scene.integrator().render(scene, scene.sensors()[0], seed=1), dtype=np.float64)
-    return image[..., :3]
-
-
+def test_the_pairwise_cases_cover_every_factor_and_every_boundary_transport_pair():
+    cases = pairwise()
+    assert set(cases) <= set(matrix()) and len(matrix()) == len(EMITTERS) * len(BOUNDARIES) * 5
+    assert {e for e, _, _ in cases} == set(EMITTERS)
+    assert {(b, t) for _, b, t in cases} == {(b, t) for b in BOUNDARIES for t in available_transports()}
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("transport", sorted(available_transports()))
-@pytest.mark.parametrize("boundary", BOUNDARIES)
-@pytest.mark.parametrize("emitter", EMITTERS)
-def test_every_emitter_boundary_and_transport_renders(tiny, emitter, boundary, transport):
-    image = _render(tiny(emitter, boundary, {"transport": transport}))
-    assert np.all(np.isfinite(image)) and image.min() >= 0
-    assert image[6:10, 6:10].mean() > 0  # the sphere, in the middle of the frame, is lit
+def test_every_boundary_and_transport_renders_each_emitter_in_turn(mi):
+    rows = bench_battery(pairwise())
+    assert all(row.ok for row in rows), battery_table([row for row in rows if not row.ok])
 
 
 valid_params = st.fixed_dictionaries({}, optional={
@@ -72,7 +57,7 @@ valid_params = st.fixed_dictionaries({}, optional={
 @settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(params=valid_params, emitter=st.sampled_from(EMITTERS), boundary=st.sampled_from(BOUNDARIES))
 def test_random_valid_parameters_give_a_finite_non_negative_image(tiny, params, emitter, boundary):
-    image = _render(tiny(emitter, boundary, params))
+    image = render_tiny(tiny(emitter, boundary, params))
     assert np.all(np.isfinite(image)) and image.min() >= 0
 
 

@@ -109,19 +109,19 @@ def test_pixels_coarser_than_the_profile_are_left_to_the_transport(mi, sphere_sc
 @pytest.mark.slow
 def test_render_with_the_table_matches_the_transport_everywhere(mi, sphere_scene, monkeypatch):
     """The same render with and without the table (same samples): mean over the object within 0.1 %."""
-    import convsss.pipeline.integrator as integrator_module
+    import convsss.pipeline.session as session_module
 
     scene = mi.load_dict(sphere_scene(material="wholemilk", radius=2.0, res=96, spp=4, floor=True))
     with_table = np.asarray(mi.render(scene, seed=1))
     stats = scene.integrator().stats
     assert stats["screen_exitance"]["usable"] and stats["screen_exitance"]["queries"] > 1000
 
-    class NoTable(integrator_module.ScreenExitance):
+    class NoTable(session_module.ScreenExitance):
         def lookup(self, si, which):
-            return dr.zeros(integrator_module.mi.Color3f, dr.width(si.p)), dr.zeros(integrator_module.mi.Bool,
+            return dr.zeros(session_module.mi.Color3f, dr.width(si.p)), dr.zeros(session_module.mi.Bool,
                                                                                     dr.width(si.p))
 
-    monkeypatch.setattr(integrator_module, "ScreenExitance", NoTable)
+    monkeypatch.setattr(session_module, "ScreenExitance", NoTable)
     without = np.asarray(mi.render(scene, seed=1))
     assert scene.integrator().stats["exitance_lookups"] > stats["exitance_lookups"]
     mask = without.sum(axis=2) > 0

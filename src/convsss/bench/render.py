@@ -23,11 +23,11 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from ..pipeline import STAGES
+
 #: Resolutions (square) and samples per pixel of the full benchmark.
 RESOLUTIONS = (256, 512, 800)
 SPPS = (1, 4, 16)
-#: Stages of a render, in order (the integrator's ``stats["seconds"]``; ``indirect`` only with indirect light).
-STAGES = ("samples", "irradiance", "indirect", "transport", "screen", "shading")
 #: The demo's object.
 DEMO = {"material": "wholemilk", "size_mm": 40.0}
 #: ``convsss`` as a command line in a fresh process, in this interpreter.

@@ -222,6 +222,25 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, out_file, as_js
     click.echo(json.dumps(result, indent=1) if as_json else volpath_table(result))
 
 
+@bench.command("battery")
+@click.option("--json", "as_json", is_flag=True, help="Print the rows as JSON instead of the table.")
+@PROGRESS
+def bench_battery_command(as_json, progress):
+    """The reliability battery's render matrix: every emitter type x boundary x transport on a tiny scene (a 1 mm
+    whole-milk sphere above a floor, 16x16, 1 spp), each ending in a finite, non-negative image with the sphere lit.
+    Prints a Markdown table and the count of cases that ended well; exits 1 when one did not."""
+    from tqdm import tqdm
+
+    from ..bench.battery import battery_table, bench_battery, matrix
+
+    with tqdm(total=len(matrix()), desc="bench battery", unit="case", disable=not progress) as bar:
+        rows = bench_battery(bar=bar)
+    click.echo(json.dumps([{**row.__dict__, "ok": row.ok} for row in rows], indent=1) if as_json
+               else battery_table(rows))
+    if not all(row.ok for row in rows):
+        raise SystemExit(1)
+
+
 @bench.command("lights")
 @click.option("--material", "materials", multiple=True, type=click.Choice(["ketchup", "skin1", "potato", "marble"]),
               help="A medium (repeat for several) [default: all]: low (ketchup), middle (skin1) and high albedo "

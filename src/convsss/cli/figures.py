@@ -13,6 +13,9 @@ from .options import PROGRESS, dask_options
 @cli.command()
 @click.option("--quick", is_flag=True,
               help="Everything small: 128x128 panels at 2 spp, short path-traced references (a few minutes).")
+@click.option("--resolution", type=click.IntRange(16, 4096), metavar="N",
+              help="Panel width and height in pixels. [default: 800; 128 with --quick] Errors are measured on the "
+                   "panels themselves at N <= 256, else on 256x256 renders of the same panels.")
 @click.option("--only", metavar="FIGS", help="Comma-separated figures to render, e.g. fig2,fig5 (or 2,5).")
 @click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False), default="out/figures", show_default=True,
               help="Output folder: one sub-folder per figure, report.md, figures.json; references cached in "
@@ -20,7 +23,7 @@ from .options import PROGRESS, dask_options
 @dask_options("the path-traced references, rendered first (the panels then render here one at a time: their "
               "seconds are part of the figures)", "none, all here")
 @PROGRESS
-def figures(quick, only, out_dir, workers, scheduler, progress):
+def figures(quick, resolution, only, out_dir, workers, scheduler, progress):
     """Regenerate the paper's figures: per figure a contact sheet PNG (captions: parameters, seconds,
     convolutions per layer c, errors against the exact sum and volpathmis), the panels' EXRs, and one report.md.
 
@@ -45,7 +48,10 @@ def figures(quick, only, out_dir, workers, scheduler, progress):
 
     names = select(only)
     check_outputs([Path(out_dir) / "report.md", Path(out_dir) / "figures.json"])
+    settings = QUICK if quick else FULL
+    if resolution is not None:
+        settings = settings.at(resolution)
     start = time.perf_counter()
-    report, run = render_figures(names, QUICK if quick else FULL, out_dir, progress, scheduler, workers)
+    report, run = render_figures(names, settings, out_dir, progress, scheduler, workers)
     click.echo(f"wrote {report} ({len(names)} figures, {sum(len(f['panels']) for f in run['figures'])} panels, "
                f"{run['cache']['hits']} cached references reused, {time.perf_counter() - start:.0f} s)")

@@ -15,6 +15,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from .. import pipeline
 from ..errors import ConvsssError
 from ..files import check_outputs, json_ready, write_files
 from ..scene.quick import SPP
@@ -33,7 +34,9 @@ from .options import (
     warn_color_model,
 )
 
-STAGES = ("scene_load", "samples", "irradiance", "indirect", "transport", "screen", "shading", "write")
+#: The command's stages: the scene loaded, the render's own (:data:`convsss.pipeline.STAGES`), the files written.
+STAGES = ("scene_load", *pipeline.STAGES, "write")
+
 
 class StageProgress:
     """The render's stages on stderr: a tqdm bar on a terminal, else one plain line per stage as it starts (a log

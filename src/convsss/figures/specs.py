@@ -11,7 +11,7 @@ wanted (a point light behind a smooth dielectric is unreachable for a path trace
 uses a smooth dielectric with the paper's Phong highlights.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from .scenes import SceneSpec
 
@@ -38,6 +38,12 @@ class Settings:
     pass_spp: int = 16
     block: int = 4
     seed: int = 0
+
+    def at(self, resolution):
+        """These settings with panels of ``resolution`` pixels a side, the errors measured on the panels themselves
+        up to 256 pixels and on 256² renders of them above."""
+        errors = (resolution, self.spp) if resolution <= 256 else (256, self.error_spp)
+        return replace(self, resolution=resolution, error_resolution=errors[0], error_spp=errors[1])
 
     @property
     def separate_error_renders(self):

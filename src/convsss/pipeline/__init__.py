@@ -1,5 +1,5 @@
 """The render: a loaded scene in, an image out, each stage a public function passing plain data
-(docs/architecture.md, the data flow; the stages in order: :data:`.session.STAGES`).
+(docs/architecture.md, the data flow; the stages in order: :data:`STAGES`, run by :mod:`.session`).
 
 - :mod:`.params`: the integrator's parameters, checked;
 - :mod:`.objects`: translucent objects found in a loaded scene; :mod:`.media`: heterogeneous interiors as classes;
@@ -22,7 +22,11 @@ Only :mod:`.params` is imported here; the others load Mitsuba when imported.
 
 from .params import RenderParams
 
-__all__ = ["RenderParams", "register", "render"]
+#: The render's stages, in the order they run (:mod:`.session` says what each does): the keys of the stats'
+#: ``seconds``, of the progress display and of the benchmarks' tables, numbered 1-6 in that order everywhere.
+STAGES = ("samples", "irradiance", "indirect", "transport", "screen", "shading")
+
+__all__ = ["STAGES", "RenderParams", "register", "render"]
 
 
 def register(variant=None):

@@ -1,7 +1,7 @@
 """The render session: what the render's stages built for one sensor, and when it may be used again.
 
 The stages (docs/architecture.md, the data flow), in the order they run and with the names the stats, the command
-line, the benchmarks and the progress display use (:data:`STAGES`):
+line, the benchmarks and the progress display use (:data:`convsss.pipeline.STAGES`):
 
 1. ``samples``: the translucent objects (:func:`.objects.find_translucent_objects`), what the camera sees of them
    (:func:`.camera.first_hits`) and the sampling plan (:func:`.plan.plan_samples`: per object the layer cell, the
@@ -34,6 +34,7 @@ from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..fresnel import same_eta
 from ..timing import StageTimer
+from . import STAGES
 from .aovs import FirstHitAOVs
 from .camera import check_camera, first_hits, sensor_frame
 from .irradiance import keeps_irradiance
@@ -46,10 +47,6 @@ from .plan import plan_samples
 from .screen import ScreenExitance
 
 mi = load_mitsuba()
-
-#: The render's stages, in order (module doc): the keys of the stats' ``seconds`` and of the progress display.
-STAGES = ("samples", "irradiance", "indirect", "transport", "screen", "shading")
-
 
 def as_seed(seed):
     """A seed as a Python int (Mitsuba hands a one-lane ``UInt32`` to a plugin's ``render``)."""
