@@ -138,7 +138,7 @@ class Forward:
         objects[self.index] = dataclasses.replace(trial, sampling=sampling)
         # The same samples, their irradiance drawn again: it depends on the reduced albedo (the entry gain) and on
         # sigma_t' too, through the indirect paths that cross the object's thin parts (Eq. S3), so retransport,
-        # which keeps it, would leave the image a little off the material (0.5 % on a 20 mm skin1 bunny, mfp x2).
+        # which keeps it, would leave the image a little off the material.
         self.integrator.reprepare(objects, replan=self._replan is not None)
         self._replan = None
         image = np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
@@ -361,8 +361,8 @@ def _brightness_free_cost(image, goal, weight):
 def _initial_eta(forward, eta, albedo, mfp, inside, goal, weight):
     """The start's boundary index or one of :data:`ETA_START_VALUES`, whichever renders the target's shape best
     (:func:`_brightness_free_cost`, summed over the channels): one evaluation each. Fitted from one index only, the
-    albedo can take up the brightness the index should explain and the fit end in a valley beside the start (on a
-    24² skin1 bunny from 1.35, the truth 1.45, at one seed of four: 6.7 % low)."""
+    albedo can take up the brightness the index should explain and the fit end in a valley beside the start (as a
+    small skin1 bunny started below its true index did)."""
     candidates = sorted({float(np.clip(e, *ETA_BOUNDS)) for e in (eta, *ETA_START_VALUES)})
     costs = [np.sum(_brightness_free_cost(forward(material_of(albedo, mfp, e))[inside], goal, weight))
              for e in candidates]

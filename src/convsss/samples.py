@@ -247,8 +247,8 @@ def _as_rows(points):
 
 @numba.njit(cache=True)
 def _project(points, origin, axes):
-    """``(points - origin)`` projected on the rows of ``axes`` (3, 3), in one pass on one thread (an ``einsum`` took
-    five times as long, and ``@`` runs OpenBLAS on all threads, 3-15 times as long on these 2 cores under load)."""
+    """``(points - origin)`` projected on the rows of ``axes`` (3, 3), in one pass on one thread (an ``einsum`` is
+    slower, and ``@`` runs OpenBLAS on all threads, which then contend with the rest of the render for the cores)."""
     out = np.empty(points.shape)
     for k in range(points.shape[0]):
         x, y, z = points[k, 0] - origin[0], points[k, 1] - origin[1], points[k, 2] - origin[2]

@@ -196,7 +196,7 @@ def bench_points(samples, points, profile, frame, cell_size, configs, runs=3, ba
             stages[k].append(_stages(transport))
             if run == 0:  # every run computes the same numbers
                 errors[k] = error_metrics(exitance[subset], reference)
-            last[k] = _facts(config, transport)  # not the transport: eighteen of them at 800² fill the memory
+            last[k] = _facts(config, transport)  # not the transport: one per configuration at 800² fills the memory
             del transport
             if bar is not None:
                 bar.update()

@@ -3,7 +3,7 @@
 A sphere of one material at the origin, lit by one emitter of one Mitsuba type, null or dielectric boundary, seen by
 a small camera with a box filter: the ratio per channel of convsss's mean over the pixels inside the sphere's
 silhouette to ``volpathmis``'s (Russian roulette off, as in ``convsss reference``: at an albedo near 1 its weights
-are heavy-tailed and a short run's mean falls low, 15-20 % on marble here). Two seeds each; the noise of each is its
+are heavy-tailed and a short run's mean falls low, markedly on marble). Two seeds each; the noise of each is its
 seeds' difference. A point, spot or directional light behind a smooth dielectric cannot be reached by a
 unidirectional path tracer (its image is black), so the dielectric rows take the lights with an area: ``area``,
 ``constant`` and ``envmap``.

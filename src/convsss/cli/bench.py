@@ -23,7 +23,7 @@ def bench():
 
 @bench.command("transport")
 @click.option("--quick", is_flag=True,
-              help="One configuration (512² grid, 8 layers, t = 0.1 %), 3 runs: about a minute.")
+              help="One configuration (512² grid, 8 layers, t = 0.1 %), 3 runs.")
 @click.option("--runs", type=click.IntRange(1), default=None,
               help="Runs per configuration (default 5; 3 with --quick).")
 @click.option("--json", "as_json", is_flag=True,
@@ -48,7 +48,7 @@ def bench_transport_command(quick, runs, as_json, progress):
 
 
 @bench.command("render")
-@click.option("--quick", is_flag=True, help="256² at 1 and 4 spp, 3 runs, no command lines: about a minute.")
+@click.option("--quick", is_flag=True, help="256² at 1 and 4 spp, 3 runs, no command lines.")
 @click.option("--runs", type=click.IntRange(1), default=None,
               help="Timed renders per configuration and integrator, after one warm-up (default 5; 3 with --quick).")
 @click.option("--commands/--no-commands", default=None,

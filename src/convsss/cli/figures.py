@@ -12,7 +12,7 @@ from .options import PROGRESS, dask_options
 
 @cli.command()
 @click.option("--quick", is_flag=True,
-              help="Everything small: 128x128 panels at 2 spp, short path-traced references (a few minutes).")
+              help="Everything small: 128x128 panels at 2 spp, short path-traced references.")
 @click.option("--resolution", type=click.IntRange(16, 4096), metavar="N",
               help="Panel width and height in pixels. [default: 800; 128 with --quick] Errors are measured on the "
                    "panels themselves at N <= 256, else on 256x256 renders of the same panels.")

@@ -26,8 +26,8 @@ COMMANDS = ("batch", "bench", "compare", "edit", "figures", "fit", "materials", 
 
 class _ConvsssGroup(click.Group):
     """A click group that reports bad input in one line (exit code 2) and Ctrl-C as ``interrupted`` (130), and
-    imports a command's module only when the command is looked up (``convsss --version`` imports none of them:
-    0.1 s instead of about 1 s of numpy, scipy, numba and the transports)."""
+    imports a command's module only when the command is looked up (``convsss --version`` imports none of them, so
+    it does not wait for numpy, scipy, numba and the transports to load)."""
 
     def list_commands(self, ctx):
         return sorted(COMMANDS)

@@ -50,7 +50,7 @@ class Settings:
         return (self.error_resolution, self.error_spp) != (self.resolution, self.spp)
 
 
-#: ``--quick``: everything at 128², errors on the panels themselves (minutes on 2 cores).
+#: ``--quick``: everything at 128², errors on the panels themselves.
 QUICK = Settings("quick", resolution=128, spp=2, error_resolution=128, error_spp=2, pt_spp=64)
 #: The paper's 800×800; errors measured on 256² renders of the same panels (exact and volpathmis at 256²).
 FULL = Settings("full", resolution=800, spp=8, error_resolution=256, error_spp=2, pt_spp=256, pass_spp=32)

@@ -54,8 +54,8 @@ from ..materials import CHANNELS, Material
 SURVEY_POINTS = 4096
 LATTICE = 24
 #: Spacing of the class nodes along a channel's axis (natural-log units: 0.4 is a 49 % step of the diffusion length
-#: or of the mean free path; 0.2 changes a veined marble's render by 0.1 %, 0.8 by 1 %), and their largest count
-#: (each class builds its transports).
+#: or of the mean free path; a finer step barely changes a veined marble's render, a coarser one changes it more), and
+#: their largest count (each class builds its transports).
 CLASS_STEP = 0.4
 MAX_CLASSES = 8
 #: ``1 - alpha'`` at least this (a channel without absorption has an infinite diffusion length).

@@ -2,8 +2,8 @@
 
 A render asks an object's transport for the exitance ``M`` of paper Eq. 7 wherever a path meets the object and the
 screen table (:mod:`.screen`) does not know it: silhouettes, sides the camera does not see, the object seen from the
-floor, indirect paths that come back to it. On the demo's bunny that is 263 k hits on 34 k of its 70 k faces in the
-shading, and 430 k in the indirect paths. Where the hits on faces outnumber their vertices and centroids, the
+floor, indirect paths that come back to it. On the demo's bunny such hits far outnumber the faces they land on, in
+the shading and more so in the indirect paths. Where the hits on faces outnumber their vertices and centroids, the
 transport is asked instead once at each of those vertices ``v_i`` (outward normal: the area-weighted mean of its
 faces') and centroids ``c``, and a hit at barycentric coordinates ``b`` in a face is given
 

@@ -11,7 +11,8 @@ from ..parameters import Parameter, check_parameters
 from ..profiles.models import DEFAULT_PROFILE, DEFAULT_TOTAL, PROFILE_TOTALS, parse_profile_spec
 
 SPECULARS = ("bsdf", "phong", "none")
-#: Default ``profile_samples``: measured to keep the exitance's sample noise about 1 % (docs/benchmarks.md).
+#: Default ``profile_samples``: chosen to hold the exitance's sample noise near the goal of 1 % (docs/benchmarks.md
+#: has the measurements).
 PROFILE_SAMPLES = 1500.0
 
 #: The integrator's AOVs (``aovs``) and their film channels, ``<name>.<channel>`` (Mitsuba's ``aov`` convention), all
@@ -64,7 +65,8 @@ def render_parameters():
                   "(the exact sum's accuracy at any size); convolution: the paper's layered FFTs; exact: the direct "
                   "sum (slow, a reference); hierarchical: Jensen & Buhler 2002; volume: multiscale corrected by the "
                   "diffusion equation solved on the object's interior (light through the body and thin parts, "
-                  "none across air gaps; about 12 times slower at 800²).", choices=available_transports()),
+                  "none across air gaps; slower: a diffusion solve on top of the multiscale sums).",
+                  choices=available_transports()),
         Parameter("irradiance_samples", int, 16, "Direction samples per surface point for area and environment "
                   "emitters (point, spot and directional lights are evaluated exactly).", low=1),
         Parameter("indirect_samples", float, 1.0, "Paths per surface sample for indirect light (light that reaches a "
@@ -76,7 +78,7 @@ def render_parameters():
         Parameter("incidence", str, "oblique", "How light entering and leaving a translucent object at a slant "
                   "counts: oblique: each direction's irradiance weighted per channel by how much more a half-space of "
                   "the medium sends back for light refracted in at that angle than for a normal beam (exact radiative "
-                  "transfer; up to 1.7x at low albedo, 1 % for whole milk), and by reciprocity the exitance leaving "
+                  "transfer; large at low albedo, small near albedo 1), and by reciprocity the exitance leaving "
                   "towards each direction likewise; normal: every direction as the profile's normal beam, the "
                   "exitance leaving as Lambert's law (the paper's).", choices=("oblique", "normal")),
         Parameter("single_scattering", str, "traced", "Light scattered once inside a translucent object: traced: "
@@ -91,17 +93,17 @@ def render_parameters():
         Parameter("profile_total", str, DEFAULT_TOTAL, "Each profile model's total reflectance: exact: scaled per "
                   "channel to that of a half-space of the medium by exact radiative transfer (the Monte Carlo slab's "
                   "within its noise), the model keeping its shape; model: the model's own (the paper's dipole is "
-                  "7-10 % low under a dielectric, beam diffusion 10-14 % high at eta 1). A CSV profile is used as "
-                  "given.", choices=PROFILE_TOTALS),
+                  "low under a dielectric, beam diffusion high at eta 1; docs/benchmarks.md has by how much). A CSV "
+                  "profile is used as given.", choices=PROFILE_TOTALS),
         Parameter("sample_density", float, 4.0, "Surface samples per layer cell: N = sample_density * area / cell^2 "
                   "over the whole surface.", low=0.0, low_open=True),
         Parameter("profile_samples", float, PROFILE_SAMPLES, "Surface samples per effective area of the object's "
                   "diffusion profile, at least (A_eff = (∫R_d dA)^2 / ∫R_d^2 dA, smallest over the channels; for a "
                   "profile narrower than the pixel footprint f, the multiscale transport's local limit, about "
-                  "1.75 f^2): N >= profile_samples * area / A_eff, so that the noise the discrete "
-                  "samples leave in the exitance (more camera samples do not remove it) stays about 1 % (mean over "
-                  "the object's pixels) at the default; it falls about as N^-0.7. 0: the pixel rule alone. Capped, "
-                  "with a warning, by the memory and time limits.", low=0.0),
+                  "1.75 f^2): N >= profile_samples * area / A_eff, so that the noise the discrete samples leave in "
+                  "the exitance (more camera samples do not remove it) stays near the goal of 1 % (mean over the "
+                  "object's pixels) at the default; it falls faster than N^-1/2, the samples being stratified. 0: the "
+                  "pixel rule alone. Capped, with a warning, by the memory and time limits.", low=0.0),
         Parameter("passes", int, 1, "Render in this many passes, each with its own surface samples (fresh, from its "
                   "own seed stream, 1/passes of sample_density and profile_samples) and its share of the camera "
                   "samples (spp); the image is their mean, so the exitance's sample noise averages out with passes "

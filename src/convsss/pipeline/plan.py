@@ -36,13 +36,13 @@ from .surface import has_vertices, mesh_arrays
 mi = load_mitsuba()
 
 #: Bytes per path of the shading (the symbolic loop's outputs, the recorded hits' room of 44 bytes a lane, the film's
-#: samples): the peak resident memory grew by 58 and 89 bytes a path over the prepared state's at 800² 16 and 64 spp
-#: on the demo; with a margin.
+#: samples): the peak resident memory's growth per path over the prepared state's, measured on the demo at several
+#: spp, with a margin.
 BYTES_PER_PATH = 120
-#: More bytes per path and AOV channel (:mod:`.aovs`): the peak grew by 25, 59 and 130 bytes a path over the prepared
-#: state's with none, 6 (object, mask, depth, normal) and all 12 channels at 512² 16 spp on the demo; with a margin.
+#: More bytes per path and AOV channel (:mod:`.aovs`): the peak's further growth per path as AOV channels are added,
+#: measured on the demo from none to all 12 channels, with a margin.
 BYTES_PER_AOV_CHANNEL = 12
-#: Bytes per surface sample held while the transport is built (about 325 measured; irradiance runs in chunks).
+#: Bytes per surface sample held while the transport is built (measured, with a margin; irradiance runs in chunks).
 BYTES_PER_SAMPLE = 400
 #: Irradiance rays traced per second on the project's 2-core machine (bunny under a constant environment).
 RAYS_PER_SECOND = 5e6

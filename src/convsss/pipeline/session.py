@@ -79,7 +79,7 @@ def _digest(params):
 def scene_fingerprint(scene, sensor):
     """``(world, crop)``: digests of every traversable parameter of the scene's shapes (with their BSDFs and media),
     its emitters and ``sensor``, and of the sensor's crop window alone: what a kept render state must still match
-    (:meth:`RenderSession.reuse`). A few milliseconds for a 70 k-triangle scene."""
+    (:meth:`RenderSession.reuse`). Cheap next to any stage of a render, so every render can check it."""
     crop_keys = ("film.crop_size", "film.crop_offset")
     camera = mi.traverse(sensor)
     crop = tuple(tuple(np.asarray(camera[k]).reshape(-1).tolist()) for k in crop_keys if k in camera)

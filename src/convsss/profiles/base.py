@@ -103,8 +103,8 @@ class Profile:
         A sum of Eq. 1 over ``n`` independent random samples per mm^2 has a relative variance ``1 / (n A_eff)`` (without
         the cut); the renderer sizes its samples by it (``profile_samples``). The cut keeps a (nearly) singular peak,
         which holds little energy but would dominate ``∫ R_d^2`` (photon beam diffusion's single scattering, Burley's
-        fit: 4-7 times smaller areas uncut, where their measured noise is that of a 2 times smaller one), from
-        asking for samples the noise does not need; it changes the dipole's area by about 2 %. Integrated on
+        fit: uncut, their areas come out several times smaller than their measured noise justifies), from asking
+        for samples the noise does not need; it changes the dipole's area only slightly. Integrated on
         :meth:`radial_table` (trapezoids in ``s``); a channel that is zero everywhere gets ``inf``.
         """
         r_scale, ds, values = self.radial_table()

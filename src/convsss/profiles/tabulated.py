@@ -10,8 +10,8 @@ from scipy.interpolate import PchipInterpolator
 from ..errors import ConvsssError
 from .base import CHANNELS, Profile
 
-#: The most data rows a profile file may have (a plot or a render of a million took minutes; 10 000 resolve any
-#: profile to well below its noise).
+#: The most data rows a profile file may have (a plot or a render slows with every row; 10 000 resolve any profile
+#: to well below its noise).
 MAX_PROFILE_ROWS = 100_000
 #: The largest radius a tabulated profile may reach, in mm (a kilometre: no medium diffuses light farther; 1e300
 #: overflowed the energy integrals and the plots).

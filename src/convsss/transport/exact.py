@@ -35,7 +35,8 @@ class ExactTransport(Transport):
 
     @property
     def query_batch(self):
-        """About 2^27 point-sample pairs per call: a fraction of a second whatever the sample count."""
+        """About 2^27 point-sample pairs per call, so that a call stays short whatever the sample count (a caller checks
+        for Ctrl-C between calls)."""
         return max(64, (1 << 27) // max(1, len(self.samples)))
 
     def _exitance(self, points):

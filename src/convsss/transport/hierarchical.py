@@ -117,8 +117,9 @@ class HierarchicalTransport(Transport):
     parameters = (
         Parameter("epsilon", float, 0.05, "Jensen & Buhler's error threshold: a node is used whole when A_node / d^2 "
                   "< epsilon (0: the exact sum; 0.05 as pbrt-v2, 0.2 as Mitsuba 0.6).", low=0.0),
-        Parameter("leaf_size", int, 4, "Most samples per octree leaf (measured on 50 000 samples: 4 is about as fast "
-                  "as 1 and 8; 16 and 32 are 2.5 and 3.5 times slower at epsilon 0.05).", low=1, high=4096),
+        Parameter("leaf_size", int, 4, "Most samples per octree leaf (a leaf's samples are summed one by one, so "
+                  "large leaves give up what the nodes' aggregates save, and tiny ones add nodes to visit).",
+                  low=1, high=4096),
     )
 
     def __init__(self, samples, profile, frame=None, **params):

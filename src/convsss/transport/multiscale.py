@@ -50,7 +50,7 @@ the query with a smooth kernel of radius ``r_0``:
 
 ``M = E_core E(x) + O(r_0^2 ∇^2 E)`` at the scale of the pixel (``K``'s rms radius is ``r_0 / 2 = f / 2``). As a
 ratio it keeps the energy wherever the samples lie (a concave or thin part gathers more surface within ``r_0``
-than a plane: a sum of ``E_core K`` would be 1-3 % bright there on a 32² bunny) and it has little noise. The far
+than a plane: a sum of ``E_core K`` would be too bright there) and it has little noise. The far
 mesh and the samples follow the image (:meth:`MultiscaleTransport.sample_area`), not the mean free path. A far
 field holding less than ``accuracy / 10`` of every channel's energy is dropped (:func:`far_energy`).
 """
@@ -77,14 +77,14 @@ FAR_TAIL = 1e-5
 #: Far-field kernel spectra, keyed by (profile, r_c, h, FFT shape).
 SPECTRA = KernelCache()
 #: The local limit's scale: the lengths follow ``max(w, LOCAL_SCALE f)`` for a pixel footprint ``f`` (Eq. M3), so
-#: ``r_0 = f``. (Against the resolved sum on a 40 mm skin1 bunny at 32², the means per channel: 0.4-0.8 % low; at
-#: ``f / 2``, 0.3-1.5 % low.)
+#: ``r_0 = f``. (Chosen against the resolved sum, whose means per channel it keeps slightly low; at ``f / 2`` they
+#: spread further.)
 LOCAL_SCALE = 1.0 / 3.0
 #: A far field holding less than this share of ``accuracy`` of every channel's energy is dropped.
 FAR_SKIP = 0.1
 #: The far mesh's FFT cells at most (600 MB of spectra), where more middle bands can keep it so. Each band adds its
-#: interpolation error: on bust200 at 800² (``convsss bench accuracy``), two bands where one fits gave 0.41 % L2
-#: against 0.25 % at accuracy 0.01, and 0.07 against 0.04 % at 0.003.
+#: interpolation error (two bands where one fits raise the error against the exact sum, ``convsss bench accuracy``),
+#: so a band is added only where the mesh would not fit otherwise.
 FAR_CELLS = 1 << 24
 #: Middle bands at most (each doubles the far mesh's spacing).
 MAX_LEVELS = 24
@@ -149,14 +149,13 @@ def scales(profile, accuracy, cell_size=None, levels=1):
 
     The errors are second order in the cluster sides, the voxel side and the mesh spacing relative to the profile's
     features, so these grow as ``sqrt(accuracy)``: ``s = w k``, ``2 s`` for the middle band (smooth at ``r_0``, it
-    needs no finer sources; measured on the five benchmark scenes at 800², the default's mean error grew from
-    0.25-0.51 % to 0.27-0.61 % and the band's corner sums took a third of the time), ``g = 0.75 w k``,
-    ``h = 2.5 w k`` with ``k = sqrt(accuracy / 0.01)``; the split radii stay at ``r_0 = 3 w`` and ``r_c = 6 w``. (The
-    far field's quadratic B-splines, against trilinear tents at ``h = 2 w k``: mean error 0.61 -> 0.55 % on
-    bust200, 0.40 -> 0.34 % on bunny40, lower on all five scenes, with half the mesh cells.) The
-    factors were chosen by measurement against the exact sum (``convsss bench accuracy``) to stay below
-    ``accuracy`` on renders. Each further band doubles ``r_c`` and ``h`` (the far field is smooth at ``r_c``): band
-    ``k`` is smooth at ``r_{k-1}`` and is summed as the first is at twice the lengths of the band before it.
+    needs no finer sources: on the benchmark scenes the default's mean error grows a little and the band's corner
+    sums get much cheaper), ``g = 0.75 w k``, ``h = 2.5 w k`` with ``k = sqrt(accuracy / 0.01)``; the split radii
+    stay at ``r_0 = 3 w`` and ``r_c = 6 w``. (The far field's quadratic B-splines, against trilinear tents at
+    ``h = 2 w k``: a lower mean error on all five benchmark scenes, with half the mesh cells.) The factors were
+    chosen by measurement against the exact sum (``convsss bench accuracy``) to stay below ``accuracy`` on renders.
+    Each further band doubles ``r_c`` and ``h`` (the far field is smooth at ``r_c``): band ``k`` is smooth at
+    ``r_{k-1}`` and is summed as the first is at twice the lengths of the band before it.
     """
     w = core_width(profile)
     local = cell_size is not None and LOCAL_SCALE * cell_size > w

@@ -31,12 +31,12 @@ crosses the body and removes what would cross the air. Both sums run on the mult
 What diffusion cannot do, this cannot either: parts thinner than a few mean free paths, low albedo (single
 scattering is traced by shading, as for every transport). A part thinner than a cell keeps Eq. 1 where no node of
 the domain is near: sources and queries with no inside node around them add no correction; a channel whose
-diffusion length is under :data:`RESOLVED_LENGTH` cells keeps Eq. 1 entirely. Measured (tests/transport/
-test_volume.py): a single point source on a half-space differs from Eq. 1 by a few per cent within 3 mm (the grid's
-response to one source against the average over where it falls in a cell); a slab 2 or 5 mm thick transmits
-0.997-1.010 of the 1-D closed form and converges to it as the spacing falls; a 5 mm sphere's exitance is the
+diffusion length is under :data:`RESOLVED_LENGTH` cells keeps Eq. 1 entirely. Checked against closed forms
+(tests/transport/test_volume.py): a single point source on a half-space differs from Eq. 1 near the source (the
+grid's response to one source against the average over where it falls in a cell); a slab 2 or 5 mm thick transmits
+the 1-D closed form within 2 % and converges to it as the spacing falls; a 5 mm sphere's exitance is the
 eigenfunction series' within 2.5 % from 60 degrees off the source on, 5 % nearer. A part only a few cells thick is
-not resolved: the 2 mm slab at a 0.5 mm spacing (7 cells across) transmits 0.91.
+not resolved: the 2 mm slab at a 0.5 mm spacing (7 cells across) transmits too little.
 """
 
 import math
@@ -138,10 +138,10 @@ def coefficients(profile, h):
     ``u = g(d) (a + b d)`` through the field at two depths, ``d_1 = max(z_b, 0.75 h)`` and ``d_2 = d_1 + h``:
     ``du/dd (z_b) = w_1 u(d_1) + w_2 u(d_2)``, with ``g(d) = sinh(sigma_tr d) / sigma_tr`` the depth profile of a
     field uniform along the surface (``b = 0``; ``b`` takes the field's variation along it: a parabola in ``d``
-    instead would be 2 % off the uniform field's slope in green at ``h = 0.25`` mm). A fixed ratio of flux to
-    fluence would be right only for a uniform field: around a point source, the flux at the surface is 1.3 times
-    ``D sigma_tr coth(sigma_tr z_b)`` times the fluence at half a millimetre and 0.90 times at 3 mm (skin1, red),
-    and the half-space's response read that way sat 5-12 % above the dipole's from 2 to 10 mm.
+    instead would miss the uniform field's slope). A fixed ratio of flux to fluence would be right only for a
+    uniform field: around a point source, the flux at the surface over ``D sigma_tr coth(sigma_tr z_b)`` times the
+    fluence is above 1 near the source and below it farther out, and the half-space's response read that way sat
+    above the dipole's.
 
     The boundary layer (``z_r + z_b``, about one mean free path) is often thinner than a cell; a source in it
     would then depend on where the boundary falls within the cell (by a factor of two on a half-space). Only the
@@ -321,7 +321,7 @@ class Surface:
         """:meth:`signed_distance` at the nodes ``origin + h (i, j, k)`` of ``shape`` within ``band`` (mm) of the
         samples; a node farther away gets ``-band`` (inside) or ``band`` (outside): the side of the nodes within the
         band that its connected region of far nodes touches, where they agree (a closed surface: a k-d tree query
-        that stops at the band is several times faster than one that finds every node's nearest sample), else
+        that stops at the band is much cheaper than one that finds every node's nearest sample), else
         (an open sheet of samples, whose inside and outside meet around its rim) the side of its nearest sample's
         tangent plane."""
         axes = [origin[d] + h * np.arange(shape[d]) for d in range(3)]
@@ -567,7 +567,7 @@ class VolumeTransport(Transport):
     def _half_space(self, h, reach):
         """``beta T`` of Eq. D2 as a tabulated profile (``T`` with the source gain of Eq. D5). A channel not corrected
         holds no flux in the second sum, but its response is solved all the same: it sets the sum's scales (with
-        the corrected channels' alone, coarser, the slab's far face falls by 1-2.5 %)."""
+        the corrected channels' alone, coarser, the slab's far face comes out too dark)."""
         k = self.coefficients
         key = (k.key(), h, reach)
         cached = RESPONSES.get(key)
