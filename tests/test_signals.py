@@ -116,6 +116,11 @@ def test_sigterm_ends_a_process_stuck_in_compiled_code():
                             env={**os.environ, "PYTHONPATH": SRC})
     try:
         assert proc.stdout.readline().strip() == "stuck"
+        # Signal it once its main thread sleeps in C: between its print and the sleep, a bytecode boundary would run
+        # the handler there (the watchdog thread took the signal, but the main thread runs Python's handlers).
+        deadline = time.perf_counter() + 30
+        while "sleep" not in Path(f"/proc/{proc.pid}/wchan").read_text() and time.perf_counter() < deadline:
+            time.sleep(0.01)
         start = time.perf_counter()
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=GRACE + 60) == 143

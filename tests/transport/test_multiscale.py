@@ -12,8 +12,6 @@ from convsss.samples import IrradianceSamples, ViewFrame
 from convsss.transport import MultiscaleTransport, make_transport
 from convsss.transport.multiscale import (
     BAND_TABLE,
-    _deposit,
-    _interpolate,
     core_width,
     cube_cells,
     group,
@@ -22,6 +20,7 @@ from convsss.transport.multiscale import (
     sheet_side,
     split,
 )
+from convsss.transport.multiscale.far_field import _deposit, _interpolate
 
 FRAME = ViewFrame.look_at(origin=[0, 0, 100], target=[0, 0, 0])
 
@@ -186,7 +185,7 @@ def test_the_middle_band_is_summed_at_voxel_corners_for_dense_queries_and_at_spa
 def test_more_middle_bands_agree_with_the_exact_sum(monkeypatch):
     """A far mesh kept small (as for an object many profile widths across) adds middle bands, each doubling r_c and
     the mesh spacing: the sum stays within the default accuracy of the exact one."""
-    import convsss.transport.multiscale as ms
+    import convsss.transport.multiscale.transport as ms
 
     milk = model_profile("dipole", material("wholemilk"))
     samples = _lit_sphere(20.0, 60000)
@@ -268,7 +267,7 @@ def test_bunny_at_two_sizes_within_one_percent_of_the_exact_sum(bunny_cases, nam
 def test_a_core_of_microns_on_a_large_object_keeps_its_cell_lists_bounded():
     """Beam diffusion's near-singular peak gives a core width of microns: on a 40 mm sphere cubes of that side would
     need a billions-of-cubes offset table; the cubes grow instead (to CELL_LIST_CUBES), and the sum is the same."""
-    import convsss.transport.multiscale as ms
+    import convsss.transport.multiscale.cells as ms
 
     samples = _lit_sphere(20.0, 2000)
     profile = model_profile("pbd", material("wholemilk"))

@@ -12,7 +12,8 @@ from convsss.errors import ConvsssError
 from convsss.profiles import TabulatedProfile, model_profile
 from convsss.samples import IrradianceSamples, ViewFrame
 from convsss.transport import make_transport
-from convsss.transport.volume import _thomas, coefficients, half_space_response
+from convsss.transport.volume import coefficients, half_space_response
+from convsss.transport.volume.response import _thomas
 
 FRAME = ViewFrame.look_at(origin=[0, 0, 50], target=[0, 0, 0])
 

@@ -1,0 +1,226 @@
+"""The volume transport itself: Eq. 1 by two multiscale sums, corrected by the diffusion equation solved on the
+object's interior (:mod:`convsss.transport.volume`)."""
+
+import math
+
+import numpy as np
+
+from ...errors import ConvsssError
+from ...memory import check_memory
+from ...parameters import Parameter
+from ...profiles.tabulated import TabulatedProfile
+from ...samples import IrradianceSamples
+from ..base import Transport, register_transport
+from ..kernels import KernelCache
+from ..multiscale import MultiscaleTransport
+from .grid import BYTES_PER_NODE, Surface, assemble, deposit, gather, grid_shape, multigrid
+from .medium import RESOLVED_LENGTH, auto_spacing, coefficients
+from .response import half_space_response
+
+#: The half-space response's reach: the radius holding all but this fraction of the profile's energy.
+RESPONSE_TAIL = 1e-4
+
+
+#: The half-space response's largest reach, in cells (its cost grows as the cube).
+MAX_REACH = 128
+
+
+#: How many diffusion lengths the medium under an open sheet of samples is grown (:meth:`VolumeTransport._domain`).
+OPEN_DEPTH = 3.0
+
+
+#: The half-space responses, keyed by (coefficients, spacing).
+RESPONSES = KernelCache()
+
+
+class VolumeTransport(Transport):
+    """Eq. 1 summed by the multiscale transport, corrected by the diffusion equation solved on the object's volume
+    (Eq. D2); see the module docstring. Needs the samples' normals."""
+
+    name = "volume"
+    sums_eq1 = False
+    parameters = (
+        Parameter("accuracy", float, 0.01, "Relative error aimed at by the sums of Eq. 1 (as the multiscale "
+                  "transport's accuracy).", low=0.0, low_open=True, high=0.5),
+        Parameter("spacing", float, 0.0, "Grid spacing of the diffusion solve in mm; 0 sets it from the material "
+                  "and the object (half the shortest diffusion length, 1/64 to 1/24 of the object's extent).",
+                  low=0.0),
+        Parameter("memory_limit", float, None, "Bytes the grid and the sums may use (default: what the machine has "
+                  "available).", low=0.0, low_open=True, exposed=False),
+    )
+
+    memory_advice = "set a coarser spacing for the volume transport, or use the multiscale transport"
+
+    @classmethod
+    def spacing_for(cls, bounds, profile, params):
+        """The grid spacing (mm) for samples within ``bounds`` (2, 3)."""
+        lo, hi = np.asarray(bounds, dtype=np.float64)
+        return params.get("spacing") or auto_spacing(profile, float(np.max(hi - lo)))
+
+    @classmethod
+    def planned_bytes(cls, bounds, profile, count, params):
+        """The grid (:data:`BYTES_PER_NODE` per node) and the two multiscale sums (their far meshes)."""
+        lo, hi = np.asarray(bounds, dtype=np.float64)
+        h = cls.spacing_for(bounds, profile, params)
+        _, shape = grid_shape(lo, hi, h, float(np.max(coefficients(profile, h).z_b)) + 2 * h)
+        sums = MultiscaleTransport.planned_bytes(bounds, profile, count, {"accuracy": params.get("accuracy", 0.01)})
+        return int(BYTES_PER_NODE * math.prod(shape) + 2 * sums)
+
+    def __init__(self, samples, profile, frame=None, **params):
+        super().__init__(samples, profile, frame, **params)
+        if len(samples) and samples.normal is None:
+            raise ConvsssError("the volume transport needs the samples' normals")
+        self.spacing, self.corrected, self._sd = 0.0, np.zeros(3, dtype=bool), np.zeros((0, 0, 0))
+        self.coefficients, self._channels = coefficients(profile, 1.0), [(None, None, None)] * 3
+        self._half = self._flat = None  # the two sums of Eq. D2, built by the first _build, relit by the others
+        if len(samples):  # without samples there is nothing to solve for: Eq. 1 (of nothing)
+            self._set_up()
+        self._build()
+
+    def _set_up(self):
+        """The grid, its matrices and multigrid hierarchies and the half-space responses, for the channels whose
+        diffusion length the grid resolves (none: Eq. 1, and no grid is built)."""
+        view = self._to_view(self.samples.position)
+        normal = self._to_view(self.samples.normal, vectors=True)
+        lo, hi = view.min(axis=0), view.max(axis=0)
+        self.spacing = h = self.spacing_for((lo, hi), self.profile, self.params)
+        self.coefficients = k = coefficients(self.profile, h)
+        reach = self._reach(h, float(np.linalg.norm(hi - lo)))
+        with np.errstate(divide="ignore"):
+            self.corrected = 1.0 / k.sigma_tr >= RESOLVED_LENGTH * h
+        self._view, self._normal = view, normal
+        if not self.corrected.any():
+            return
+        with self.timings("domain"):
+            self._surface = Surface(view, normal, h)
+            self._origin, self._sd = self._domain(lo, hi, h, reach)
+        self._channels = []
+        for c in range(3):
+            if not self.corrected[c]:
+                self._channels.append((None, None, None))
+                continue
+            with self.timings("matrix"):
+                matrix, index = assemble(self._sd, k.z_b[c], k.diffusion[c], k.absorption[c], h)
+            with self.timings("multigrid"):
+                solver = multigrid(matrix) if matrix.shape[0] else None
+            self._channels.append((index, k.z_b[c] - self._sd, solver))
+        with self.timings("response"):
+            self._response = self._half_space(h, reach)
+
+    def _domain(self, lo, hi, h, reach):
+        """The grid's origin and the signed distance at its nodes. Where the samples bound nothing (an open sheet,
+        the grid's border inside), the medium goes on: the grid grows by the response's reach on those sides."""
+        pad = float(np.max(self.coefficients.z_b)) + 2 * h
+        low, high = lo - pad, hi + pad
+        for grown in (False, True):
+            origin, shape = grid_shape(low, high, h, 0.0)
+            check_memory(BYTES_PER_NODE * math.prod(shape), "the volume transport's grid", self.memory_advice,
+                         self.params["memory_limit"])
+            sd = self._surface.signed_distance_on(origin, h, shape, pad + h)
+            inside = sd < pad - 2 * h
+            open_low = np.array([inside.take(0, axis=d).any() for d in range(3)])
+            open_high = np.array([inside.take(-1, axis=d).any() for d in range(3)])
+            if grown or not (open_low.any() or open_high.any()):
+                return origin, sd
+            grow = self._depth_of_medium(reach)
+            low, high = low - grow * open_low, high + grow * open_high
+
+    def _reach(self, h, diagonal):
+        """How far the half-space response reaches (mm): the profile's reach (:data:`RESPONSE_TAIL`) or the samples'
+        diagonal, whichever is shorter (no two samples are farther apart), and at most :data:`MAX_REACH` cells."""
+        return min(float(np.max(self.profile.radius_energy(RESPONSE_TAIL))), diagonal + h, MAX_REACH * h)
+
+    def _depth_of_medium(self, reach):
+        """How far an open sheet's medium is grown (mm): :data:`OPEN_DEPTH` diffusion lengths (the field falls by
+        ``e^-6`` there and back), at most the reach."""
+        with np.errstate(divide="ignore"):
+            length = float(np.max(1.0 / self.coefficients.sigma_tr))
+        return min(reach, OPEN_DEPTH * length)
+
+    def _half_space(self, h, reach):
+        """``beta T`` of Eq. D2 as a tabulated profile (``T`` with the source gain of Eq. D5). A channel not corrected
+        holds no flux in the second sum, but its response is solved all the same: it sets the sum's scales (with
+        the corrected channels' alone, coarser, the slab's far face comes out too dark)."""
+        k = self.coefficients
+        key = (k.key(), h, reach)
+        cached = RESPONSES.get(key)
+        if cached is None:
+            tables = [half_space_response(k.diffusion[c], k.absorption[c], k.source_depth[c], k.read_depths[:, c],
+                                          k.read_weights[:, c], h, reach) for c in range(3)]
+            cached = (tables[0][0], np.stack([t[1] for t in tables], axis=1))
+            RESPONSES.put(key, cached)
+        r, response = cached
+        return TabulatedProfile(r, response * (k.beta * k.source_gain), name="half-space response")
+
+    def _build(self):
+        """What depends on the flux: the solves of Eq. D1 and the two sums of Eq. D2."""
+        flux = self.samples.flux
+        held = np.zeros_like(flux)
+        self._fields = []
+        k = self.coefficients
+        for c, (_, _, solver) in enumerate(self._channels):
+            if solver is None:
+                self._fields.append(np.zeros(0))
+                continue
+            with self.timings("sources"):  # each sample's source, k.source_depth inside the boundary (Eq. D5)
+                rhs, has = self._place(c, self._view, self._normal, k.source_depth[c], flux[:, c])
+                held[:, c] = np.where(has, flux[:, c], 0.0)
+            with self.timings("solve"):
+                field = solver.solve(rhs / self.spacing**3, x0=np.zeros_like(rhs), tol=1e-8, accel="cg", maxiter=200)
+                self._fields.append(field)
+        with self.timings("sums"):  # relit: the sums keep their clusters (the samples' places are the same)
+            if self._half is not None:
+                self._half = self._half.relit(self.samples.irradiance)
+                self._flat = None if self._flat is None else self._flat.relit(held / self.samples.area[:, None])
+                return
+            ms = {"accuracy": self.params["accuracy"], "memory_limit": self.params["memory_limit"]}
+            self._half = MultiscaleTransport(self.samples, self.profile, self.frame, **ms)
+            held_samples = IrradianceSamples(self.samples.position, self.samples.area,
+                                             held / self.samples.area[:, None], self.samples.normal)
+            self._flat = MultiscaleTransport(held_samples, self._response, self.frame, **ms) \
+                if self.corrected.any() else None
+
+    def _place(self, c, points, normal, distance, flux=None, field=None):
+        """Channel ``c``'s sources (``flux`` given: returns the right-hand side and which samples are held) or reads
+        (``field`` given: returns the values and which points are held) at ``distance`` inside the extrapolated
+        boundary under surface ``points`` (sources where Eq. D5 puts them, reads at Eq. D4's depths), with
+        :func:`moment_weights`."""
+        index, depth, solver = self._channels[c]
+        at = points - (distance - self.coefficients.z_b[c]) * normal
+        if flux is not None:
+            return deposit(at, flux, self._origin, self.spacing, index, depth, solver.levels[0].A.shape[0])
+        return gather(at, field, self._origin, self.spacing, index, depth)
+
+    def _relit(self, samples):
+        """The same grid, matrices, multigrid hierarchies and responses; the solves and sums again."""
+        return self._rebuilt(samples)
+
+    def _exitance(self, points):
+        out = self._half.exitance(points)
+        view = self._to_view(points)
+        if self._flat is None:
+            return out
+        correction = -self._flat.exitance(points)
+        k = self.coefficients
+        with self.timings("read_back"):
+            normal = self._surface.normal_near(view)
+            for c in np.flatnonzero([solver is not None for _, _, solver in self._channels]):
+                slope, held = 0.0, np.ones(len(view), dtype=bool)
+                for depth, weight in zip(k.read_depths[:, c], k.read_weights[:, c]):  # Eq. D4
+                    value, has = self._place(c, view, normal, depth, field=self._fields[c])
+                    slope, held = slope + weight * value, held & has
+                correction[:, c] += k.beta[c] * k.source_gain[c] * slope
+                correction[~held, c] = 0.0
+        return np.maximum(out + correction, 0.0)
+
+    @property
+    def stats(self):
+        """The base stats plus the grid's spacing, shape and unknowns per channel, Eq. D4's ``beta``, the corrected
+        channels and the two sums' stats."""
+        return {**super().stats, "spacing_mm": self.spacing, "grid": list(self._sd.shape),
+                "unknowns": [0 if index is None else int((index >= 0).sum()) for index, _, _ in self._channels],
+                "beta": self.coefficients.beta.tolist(), "corrected": self.corrected.tolist(),
+                "sums": [t.stats for t in (self._half, self._flat) if t is not None]}
+
+
+register_transport(VolumeTransport)
