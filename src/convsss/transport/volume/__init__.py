@@ -44,6 +44,6 @@ it, :mod:`.grid` the interior, its system and its deposit and gather, :mod:`.tra
 
 from .medium import auto_spacing, coefficients, medium_of
 from .response import half_space_response
-from .transport import VolumeTransport
+from .transport import RESPONSES, VolumeTransport
 
-__all__ = ["VolumeTransport", "auto_spacing", "coefficients", "half_space_response", "medium_of"]
+__all__ = ["RESPONSES", "VolumeTransport", "auto_spacing", "coefficients", "half_space_response", "medium_of"]
