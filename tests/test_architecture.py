@@ -46,3 +46,47 @@ def test_the_stages_are_numbered_as_the_session_runs_them():
     numbered = re.findall(r"^ (\d) ([a-z]+)", block, flags=re.M)
     assert [name for _, name in numbered] == list(STAGES)
     assert [int(k) for k, _ in numbered] == list(range(1, len(STAGES) + 1))
+
+
+def _module_imports():
+    """``{module: modules it imports at its top level}`` over the package, a package standing for its ``__init__``:
+    ``from .x import y`` is an edge to ``x`` (or to ``x.y`` where that is a module)."""
+    import ast
+
+    root = Path(__file__).parents[1] / "src"
+    files = {".".join(p.relative_to(root).with_suffix("").parts).removesuffix(".__init__"): p
+             for p in (root / "convsss").rglob("*.py")}
+    edges = {}
+    for name, path in files.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        edges[name] = set()
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.ImportFrom):
+                base = package.split(".")[:len(package.split(".")) - node.level + 1] if node.level else []
+                target = ".".join(base + ([node.module] if node.module else []))
+                subs = {f"{target}.{a.name}" for a in node.names} & files.keys()
+                edges[name] |= subs | ({target} & files.keys() if len(subs) < len(node.names) else set())
+            elif isinstance(node, ast.Import):
+                edges[name] |= {a.name for a in node.names} & files.keys()
+        edges[name].discard(name)
+    return edges
+
+
+def test_no_module_imports_itself_back_through_others():
+    """No import cycle at import time, a package's ``__init__`` counted as the package (one that imports a child
+    which imports the package back is a cycle)."""
+    edges = _module_imports()
+    assert len(edges) > 50 and edges["convsss.pipeline.session"] >= {"convsss.pipeline", "convsss.pipeline.plan"}
+    state = {}
+
+    def visit(module, path):
+        state[module] = "open"
+        for target in edges.get(module, ()):
+            assert state.get(target) != "open", " -> ".join(path + [target])
+            if target not in state:
+                visit(target, path + [target])
+        state[module] = "done"
+
+    for module in sorted(edges):
+        if module not in state:
+            visit(module, [module])
