@@ -35,10 +35,11 @@ def _material(mi, source, unit_mm=1.0, profile="", total="exact"):
 @pytest.mark.parametrize("boundary", ["null", "dielectric", "roughdielectric"])
 def test_a_preset_by_name_is_the_cli_preset(mi, tmp_path, boundary):
     """XML and dict: exactly the Material of `--mesh bunny --material skin1`."""
-    from convsss.cli.options import load_source
     from convsss.scene.quick import demo_mesh, quick_scene
+    from convsss.scene.source import SceneSource
 
-    cli = find_translucent_objects(mi, load_source(None, "bunny", "skin1", 10, False, boundary, 16, 16))[0].material
+    source = SceneSource(mesh="bunny", material="skin1", size_mm=10, boundary=boundary, width=16, height=16)
+    cli = find_translucent_objects(mi, source.load())[0].material
     scene = _named(quick_scene(demo_mesh(), convsss.material("skin1"), 10, 16, 16, boundary=boundary),
                    {"preset": "Skin 1"}, boundary, 1.3)
     path = tmp_path / "named.xml"

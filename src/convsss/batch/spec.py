@@ -36,8 +36,6 @@ COMMANDS = ("render", "reference")
 RESERVED = ("output", "stats_path", "progress", "scene_file")
 #: The SPEC's top-level keys.
 TOP_KEYS = ("command", "scene", "axes", "jobs")
-#: The options that give a quick scene's material by colour, in :func:`~convsss.cli.options.check_source`'s order.
-QUICK_COLOR = ("color", "mfp_mm", "eta", "color_model")
 #: The default bound on the number of jobs (``--max-jobs``).
 MAX_JOBS = 10_000
 
@@ -231,7 +229,7 @@ def check_job(command, job):
     file that does not exist, a mesh or a material that is not there. Nothing is loaded or rendered."""
     import click
 
-    from ..cli.options import check_source
+    from ..scene.source import FIELDS, SceneSource
 
     problems = []
     try:
@@ -246,8 +244,7 @@ def check_job(command, job):
     if mesh and mesh != "bunny" and not Path(mesh).is_file():
         problems.append(f"the mesh {mesh!r} does not exist")
     try:
-        check_source(options.get("scene_file"), mesh, options.get("material"), options.get("size_mm"),
-                     options.get("boundary", "dielectric"), *(options.get(k) for k in QUICK_COLOR))
+        SceneSource(**{k: v for k, v in options.items() if k in FIELDS}).check()
     except ConvsssError as error:
         problems.append(str(error))
     return problems

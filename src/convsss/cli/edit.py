@@ -1,11 +1,13 @@
 """``convsss edit``: the interactive material editor, a local web page over an
 :class:`~convsss.editor.EditSession` (:mod:`convsss.editor.server`)."""
 
+import dataclasses
+
 import click
 
 from ..errors import ConvsssError
 from .main import cli
-from .options import integrator_options, load_source, pick_sensor, render_params, scene_source_options
+from .options import integrator_options, pick_sensor, render_params, scene_source_options
 
 
 @cli.command()
@@ -17,8 +19,7 @@ from .options import integrator_options, load_source, pick_sensor, render_params
 @click.option("--open/--no-open", "open_browser", default=False, show_default=True,
               help="Open the page in the default browser.")
 @integrator_options
-def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height, spp,
-         sensor, light_scale, orbit_deg, seed, target, port, open_browser, **integrator):
+def edit(source, spp, sensor, seed, target, port, open_browser, **integrator):
     """Edit one translucent object's material in a web page served on 127.0.0.1: the render, a preset picker,
     sliders for colour and mean free path, sigma_s' and sigma_a per channel, eta (dielectric boundaries), the
     multiscale transport's accuracy, the profile model, the profile's plot and per-stage seconds.
@@ -34,7 +35,7 @@ def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, f
     """
     if spp is not None and spp < 1:
         raise ConvsssError(f"spp={spp} is not allowed: it must be >= 1")
-    quick = scene_file is None
+    quick = source.quick
     defaults = {"specular": "phong"} if quick else {}
     render_params(integrator, defaults)  # bad values fail before anything is loaded
     from ..backend import load_mitsuba
@@ -43,8 +44,7 @@ def edit(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, f
     from ..pipeline.integrator import scene_parameters
 
     load_mitsuba()
-    scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width or 256, height or 256, color,
-                        mfp_mm, eta, color_model, light_scale=light_scale, orbit_deg=orbit_deg)
+    scene = dataclasses.replace(source, width=source.width or 256, height=source.height or 256).load()
     base = scene_parameters(scene) or defaults
     camera = pick_sensor(scene, sensor)
     server = EditorServer(None, "127.0.0.1", port)  # the port is taken (or refused) before the first render

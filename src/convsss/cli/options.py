@@ -4,6 +4,7 @@ PNGs, and one option per integrator parameter, generated from the parameters' de
 so that help, defaults and checks are stated once.
 """
 
+import functools
 import warnings
 from pathlib import Path
 
@@ -12,7 +13,9 @@ import click
 from ..errors import ConvsssError
 from ..image import TONEMAPS, check_tonemap
 from ..materials import DEFAULT_ETA
-from ..scene.quick import HEIGHT, SPP, WIDTH
+from ..scene.materials import BOUNDARIES
+from ..scene.quick import SPP, WIDTH
+from ..scene.source import FIELDS, SceneSource
 
 #: ``--progress/--no-progress``: every command that takes more than a moment shows a bar on stderr.
 PROGRESS = click.option("--progress/--no-progress", default=True, show_default=True,
@@ -71,7 +74,8 @@ def dask_options(runs, default_workers):
 
 def color_options(func):
     """``--color``, ``--mfp-mm``, ``--eta`` and ``--color-model``: a material by colour and distance, the alternative
-    to ``--material`` (shared by the commands that take ``--material``; :func:`source_material`)."""
+    to ``--material`` (shared by the commands that take ``--material``;
+    :func:`~convsss.scene.source.source_material`)."""
     options = [
         click.option("--color", metavar="R,G,B",
                      help="Instead of --material: the surface colour, the total diffuse reflectance per channel in "
@@ -84,47 +88,6 @@ def color_options(func):
         COLOR_MODEL,
     ]
     return _decorate(func, options)
-
-
-def parse_triple(text, name):
-    """Three floats from ``"R,G,B"`` or one number (repeated), or a one-line error naming option ``name``."""
-    try:
-        values = [float(x) for x in str(text).split(",")]
-    except ValueError:
-        raise ConvsssError(f"{name} {text!r} is not allowed: give one number or three, R,G,B") from None
-    if len(values) not in (1, 3):
-        raise ConvsssError(f"{name} {text!r} is not allowed: give one number or three, R,G,B")
-    return values * 3 if len(values) == 1 else values
-
-
-def source_material(material, color, mfp_mm, eta, color_model, boundary):
-    """The :class:`~convsss.materials.Material` of ``--material NAME`` or of ``--color/--mfp-mm`` (None when neither
-    is given), for an object with ``boundary``; one-line errors for bad combinations and values.
-
-    A colour is inverted by :func:`~convsss.profiles.models.material_from_color` under ``color_model`` (default: the
-    exact total) at ``eta`` (default :data:`~convsss.materials.DEFAULT_ETA`; 1 on a ``null`` boundary, which is
-    index-matched). No :class:`~convsss.materials.OpticallyThinWarning` here: the scene's object says it once, by
-    its own name.
-    """
-    from ..materials import material as lookup_material
-    from ..profiles.models import DEFAULT_COLOR_MODEL, material_from_color
-
-    by_color = color is not None or mfp_mm is not None
-    if material and by_color:
-        raise ConvsssError("give --material or --color/--mfp-mm, not both")
-    if not by_color:
-        extra = "--eta" if eta is not None else "--color-model" if color_model is not None else None
-        if extra:
-            raise ConvsssError(f"{extra} goes with --color/--mfp-mm (a preset has its own coefficients and eta)")
-        return lookup_material(material, warn=False) if material else None
-    if color is None or mfp_mm is None:
-        raise ConvsssError(f"{'--color' if color is not None else '--mfp-mm'} needs "
-                           f"{'--mfp-mm' if color is not None else '--color'}: a material by colour needs both")
-    if boundary == "null" and eta is not None and eta != 1.0:
-        raise ConvsssError(f"--eta {eta:g} is not allowed with --boundary null: an index-matched boundary has eta 1")
-    eta = 1.0 if boundary == "null" else (DEFAULT_ETA if eta is None else eta)
-    return material_from_color(parse_triple(color, "--color"), parse_triple(mfp_mm, "--mfp-mm"), eta,
-                               color_model or DEFAULT_COLOR_MODEL, name="color", warn=False)
 
 
 def warn_color_model(color_model, profile, total):
@@ -144,8 +107,9 @@ def warn_color_model(color_model, profile, total):
 
 def scene_source_options(func=None, *, preview=False):
     """The options that say what to render: a scene file, or ``--mesh``, ``--material`` (or ``--color/--mfp-mm``,
-    :func:`color_options`) and ``--size-mm``, the film size, spp, seed and sensor (shared by commands); ``preview``:
-    the editor's defaults (a 256² preview at 1 spp, whatever the scene's film)."""
+    :func:`color_options`) and ``--size-mm``, the film size, lights and camera (collected into one ``source``
+    argument, a :class:`~convsss.scene.source.SceneSource`), and spp, seed and sensor (shared by commands);
+    ``preview``: the editor's defaults (a 256² preview at 1 spp, whatever the scene's film)."""
     if func is None:
         return lambda f: scene_source_options(f, preview=preview)
     size = "default 256 (the scene's film is resized)" if preview else f"default: the scene's; {WIDTH} with --mesh"
@@ -160,7 +124,7 @@ def scene_source_options(func=None, *, preview=False):
         color_options,
         click.option("--size-mm", type=float, help="With --mesh: the object's largest side in mm."),
         click.option("--floor", is_flag=True, help="With --mesh: add a grey floor under the object."),
-        click.option("--boundary", type=click.Choice(["dielectric", "roughdielectric", "null"]), default="dielectric",
+        click.option("--boundary", type=click.Choice(BOUNDARIES), default="dielectric",
                      show_default=True,
                      help="With --mesh: the object's surface: a smooth or rough dielectric with the material's index "
                           "of refraction, or index-matched (null)."),
@@ -181,7 +145,12 @@ def scene_source_options(func=None, *, preview=False):
                           "whatever the thread count; reference: up to Mitsuba's float rounding, about 1e-7 "
                           "relative)."),
     ]
-    return _decorate(func, options)
+
+    @functools.wraps(func)
+    def collected(**kwargs):
+        return func(source=SceneSource(**{name: kwargs.pop(name) for name in FIELDS}), **kwargs)
+
+    return _decorate(collected, options)
 
 
 def pick_sensor(scene, sensor):
@@ -197,17 +166,6 @@ def pick_sensor(scene, sensor):
         raise ConvsssError(f"--sensor {sensor} is not allowed: the scene has {len(sensors)} sensor(s), 0 to "
                            f"{len(sensors) - 1}")
     return sensors[sensor]
-
-
-def source_inputs(scene_file, mesh):
-    """The files the scene-source options read: the scene file and every file it names, or the mesh."""
-    from ..scene.loading import scene_inputs
-    from ..scene.quick import demo_mesh
-
-    inputs = scene_inputs(scene_file) if scene_file else []
-    if mesh:
-        inputs.append(demo_mesh() if mesh == "bunny" else Path(mesh))
-    return inputs
 
 
 def _check_tonemap_option(ctx, param, value):
@@ -242,47 +200,6 @@ def exposure_anchor(exposure_from, tonemap):
     from ..image import read_image
 
     return read_image(exposure_from)
-
-
-def load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color=None, mfp_mm=None,
-                eta=None, color_model=None, light_scale=1.0, orbit_deg=0.0):
-    """The loaded scene for the scene-source options, its lights scaled by ``light_scale`` and its cameras orbited
-    by ``orbit_deg`` (:mod:`convsss.scene.variations`); one-line errors for bad combinations."""
-    from ..scene.variations import orbit_camera, scale_lights
-
-    scene = _load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
-                         color_model)
-    return orbit_camera(scale_lights(scene, light_scale), orbit_deg)
-
-
-def check_source(scene_file, mesh, material, size_mm, boundary, color=None, mfp_mm=None, eta=None,
-                 color_model=None):
-    """One-line errors for scene-source options that name nothing to render or two things at once; the quick
-    scene's material (None with a scene file). Nothing is loaded."""
-    colored = any(x is not None for x in (color, mfp_mm, eta, color_model))
-    if scene_file and (mesh or material or colored or size_mm is not None):
-        raise ConvsssError("give a scene file or --mesh/--material (or --color/--mfp-mm)/--size-mm, not both")
-    if scene_file:
-        return None
-    made = source_material(material, color, mfp_mm, eta, color_model, boundary)
-    if not (mesh and made is not None and size_mm is not None):
-        raise ConvsssError("nothing to render: give a scene file, or all of --mesh, --material (or --color and "
-                           "--mfp-mm) and --size-mm")
-    return made
-
-
-def _load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
-                 color_model):
-    from ..scene.loading import load_scene
-
-    made = check_source(scene_file, mesh, material, size_mm, boundary, color, mfp_mm, eta, color_model)
-    if scene_file:
-        return load_scene(scene_file, width, height)
-    from ..scene.quick import demo_mesh, quick_scene
-
-    mesh_path = demo_mesh() if mesh == "bunny" else Path(mesh)
-    scene = quick_scene(mesh_path, made, size_mm, width or WIDTH, height or HEIGHT, floor=floor, boundary=boundary)
-    return load_scene(scene)
 
 
 class DeclaredType(click.ParamType):

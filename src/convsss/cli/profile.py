@@ -12,8 +12,9 @@ import click
 from ..errors import ConvsssError
 from ..files import check_outputs, json_ready, text_writer, write_files
 from ..materials import DEFAULT_ETA
+from ..scene.source import parse_triple
 from .main import cli
-from .options import COLOR_MODEL, MODEL_NAMES, PROGRESS, parse_triple
+from .options import COLOR_MODEL, MODEL_NAMES, PROGRESS
 
 MODEL_CHOICE = click.Choice(MODEL_NAMES)
 

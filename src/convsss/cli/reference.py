@@ -14,11 +14,9 @@ from .main import cli
 from .options import (
     PROGRESS,
     exposure_anchor,
-    load_source,
     output_paths,
     pick_sensor,
     scene_source_options,
-    source_inputs,
     tonemap_options,
 )
 
@@ -35,9 +33,7 @@ from .options import (
                    "written) instead of a warning.")
 @tonemap_options
 @PROGRESS
-def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height,
-              spp, sensor, light_scale, orbit_deg, seed, output, pass_spp, strict, tonemap, key, exposure,
-              exposure_from, progress):
+def reference(source, spp, sensor, seed, output, pass_spp, strict, tonemap, key, exposure, exposure_from, progress):
     """Render SCENE_FILE with Mitsuba's volumetric path tracer volpathmis: the ground truth of `convsss render`.
 
     Russian roulette is off and paths are unbounded. --spp is the total (default: the scene's sampler), rendered in
@@ -61,12 +57,11 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
         raise ConvsssError(f"--spp {spp} is not allowed: it must be >= 1")
     start = time.perf_counter()
     exr, png, info = output_paths(output, ".exr", ".png", ".json")
-    check_outputs([exr, png, info], [*source_inputs(scene_file, mesh), *([exposure_from] if exposure_from else [])])
+    check_outputs([exr, png, info], [*source.inputs(), *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
-    scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
-                        color_model, light_scale=light_scale, orbit_deg=orbit_deg)
+    scene = source.load()
     camera = pick_sensor(scene, sensor)
-    total_spp = spp if spp is not None else (SPP if scene_file is None else camera.sampler().sample_count())
+    total_spp = spp if spp is not None else (SPP if source.quick else camera.sampler().sample_count())
     lines = progress and not sys.stderr.isatty()  # a log: one line a pass, no carriage returns
     bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress or lines)
     if lines:
@@ -74,9 +69,9 @@ def reference(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_
 
     def save(image, done, index, n_passes):
         text = json.dumps({
-            "command": "reference", "scene": str(scene_file) if scene_file else None, "integrator": "volpathmis",
-            "rr_depth": "off", "max_depth": -1, "spp_done": done, "spp_requested": total_spp,
-            "passes_done": index + 1, "passes": n_passes, "seed": seed,
+            "command": "reference", "scene": None if source.quick else str(source.scene_file),
+            "integrator": "volpathmis", "rr_depth": "off", "max_depth": -1, "spp_done": done,
+            "spp_requested": total_spp, "passes_done": index + 1, "passes": n_passes, "seed": seed,
             "seconds": time.perf_counter() - start}, indent=1)
         write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure, anchor=anchor),
                      info: text_writer(text)})

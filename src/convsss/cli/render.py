@@ -24,12 +24,10 @@ from .options import (
     PROGRESS,
     exposure_anchor,
     integrator_options,
-    load_source,
     output_paths,
     pick_sensor,
     render_params,
     scene_source_options,
-    source_inputs,
     tonemap_options,
     warn_color_model,
 )
@@ -103,9 +101,8 @@ class StageProgress:
               help="Write a JSON file: parameters, per-stage seconds, grid and FFT shapes, pairs per layer, sample "
                    "count, and the object's size in mean free paths and diffusion lengths.")
 @PROGRESS
-def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm, floor, boundary, width, height, spp,
-           sensor, light_scale, orbit_deg, seed, output, write_mask, tonemap, key, exposure, exposure_from, stats_path,
-           progress, **integrator):
+def render(source, spp, sensor, seed, output, write_mask, tonemap, key, exposure, exposure_from, stats_path, progress,
+           **integrator):
     """Render SCENE_FILE (a Mitsuba 3 XML scene) with the convsss integrator, whatever integrator the file names.
 
     A translucent object is a shape with an interior 'homogeneous' medium (or a 'convsss_medium' naming a preset
@@ -127,7 +124,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
     if spp is not None and spp < 1:
         raise ConvsssError(f"spp={spp} is not allowed: it must be >= 1")
     start = time.perf_counter()
-    quick = scene_file is None
+    quick = source.quick
     defaults = {"specular": "phong"} if quick else {}
     render_params(integrator, defaults)  # bad values fail before anything is loaded
     from ..profiles import TabulatedProfile
@@ -138,7 +135,7 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         TabulatedProfile.from_csv(csv)
     exr, png, mask_png = output_paths(output, ".exr", ".png", "-mask.png")
     check_outputs([exr, png, *([mask_png] if write_mask else []), *([stats_path] if stats_path else [])],
-                  [*source_inputs(scene_file, mesh), *profiles, *([exposure_from] if exposure_from else [])])
+                  [*source.inputs(), *profiles, *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
 
     from ..backend import load_mitsuba
@@ -150,12 +147,11 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
     try:
         bar("scene_load")
         t = time.perf_counter()
-        scene = load_source(scene_file, mesh, material, size_mm, floor, boundary, width, height, color, mfp_mm, eta,
-                            color_model, light_scale=light_scale, orbit_deg=orbit_deg)
+        scene = source.load()
         base = scene_parameters(scene) or dict(defaults)
         params = render_params(integrator, base)
-        if color is not None:
-            warn_color_model(color_model, params.profile, params.profile_total)
+        if source.color is not None:
+            warn_color_model(source.color_model, params.profile, params.profile_total)
         if write_mask:  # the AOVs asked for (on the command line, else in the scene) and the mask
             params = render_params({**integrator, "aovs": _with_mask(params.aovs)}, base)
         seconds["scene_load"] = time.perf_counter() - t
@@ -172,12 +168,9 @@ def render(scene_file, mesh, material, color, mfp_mm, eta, color_model, size_mm,
         t = time.perf_counter()
         from ..image import exr_writer, mask_png_writer, png_writer
 
-        stats = {"command": "render", "scene": str(scene_file) if scene_file else None,
-                 "quick": {"mesh": str(mesh), "material": material, "color": color, "mfp_mm": mfp_mm, "eta": eta,
-                           "color_model": color_model, "size_mm": size_mm, "floor": floor,
-                           "boundary": boundary} if quick else None,
-                 "seed": seed, "spp": spp_used, "sensor": scene.sensors().index(camera), "light_scale": light_scale,
-                 "orbit_deg": orbit_deg,
+        stats = {"command": "render", "scene": None if quick else str(source.scene_file), "quick": source.summary(),
+                 "seed": seed, "spp": spp_used, "sensor": scene.sensors().index(camera),
+                 "light_scale": source.light_scale, "orbit_deg": source.orbit_deg,
                  "outputs": {"exr": str(exr), "png": str(png), "mask": str(mask_png) if write_mask else None},
                  "aovs": aovs,
                  "tonemap": {"method": tonemap, "key": key, "exposure": exposure, "exposure_from": exposure_from},

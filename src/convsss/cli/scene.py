@@ -10,8 +10,9 @@ from ..errors import ConvsssError
 from ..files import check_outputs, write_text
 from ..scene.materials import BOUNDARIES
 from ..scene.quick import HEIGHT, SPP, WIDTH
+from ..scene.source import source_material
 from .main import cli
-from .options import color_options, source_material
+from .options import color_options
 
 #: What an object's id may be: a name Mitsuba, XML and ``--profile NAME=...`` all take (no dots, no spaces).
 ID_PATTERN = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
