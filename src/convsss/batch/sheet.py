@@ -10,8 +10,6 @@ import numpy as np
 
 from ..files import atomic_write
 
-#: The longest side of a tile on the sheet, in pixels (images are shown whole, scaled to fit).
-TILE = 192
 #: A turntable's frames per second.
 FPS = 12
 
@@ -22,32 +20,25 @@ def _label(job):
 
 
 def contact_sheet(batch, records, path):
-    """Write ``path`` (PNG): every job's image in a grid, labelled by what its axes set."""
-    import matplotlib
+    """Write ``path`` (PNG): every job's image in a grid (:func:`convsss.sheets.contact_sheet`), captioned by what
+    its axes set; a job without its image is a grey tile captioned with its status."""
+    from PIL import Image
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..sheets import contact_sheet as sheet
 
     jobs = list(batch.jobs)
-    columns = int(np.ceil(np.sqrt(len(jobs))))
-    rows = int(np.ceil(len(jobs) / columns))
-    figure, axes = plt.subplots(rows, columns, figsize=(columns * TILE / 72, rows * (TILE + 24) / 72), dpi=72,
-                                squeeze=False)
-    for ax in axes.ravel():
-        ax.axis("off")
-    for ax, job in zip(axes.ravel(), jobs):
+    displays, captions = [], []
+    for job in jobs:
         record = records.get(job.id, {})
         png = record.get("outputs", {}).get("png")
         if record.get("status") == "done" and png and Path(png).is_file():
-            ax.imshow(plt.imread(png))
+            displays.append(np.asarray(Image.open(png).convert("RGB")))
+            captions.append(_label(job))
         else:
-            ax.imshow(np.full((8, 8, 3), 0.5))
-            ax.text(4, 4, record.get("status", "pending"), ha="center", va="center", color="white")
-        ax.set_title(_label(job), fontsize=7)
-    figure.tight_layout()
-    atomic_write(path, lambda tmp: figure.savefig(tmp, format="png"))
-    plt.close(figure)
-    return path
+            displays.append(np.full((8, 8, 3), 128, dtype=np.uint8))
+            captions.append(f"{_label(job)}\n({record.get('status', 'pending')})")
+    title = f"{batch.command}: {len(jobs)} jobs" + (f" over {', '.join(batch.axes)}" if batch.axes else "")
+    return sheet(path, title, displays, captions, columns=int(np.ceil(np.sqrt(len(jobs)))))
 
 
 def turntables(batch, records, out):

@@ -94,7 +94,7 @@ def _by(figure, key):
 
 # --- plots --------------------------------------------------------------------------------------------------------
 def _plots(out, figures):
-    from .sheet import plot
+    from ..sheets import plot
 
     made = {}
     fig = figures.get("fig2")

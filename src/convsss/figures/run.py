@@ -250,8 +250,9 @@ class Runner:
     def figure(self, name):
         from ..compare import error_image
         from ..image import srgb_encode, write_exr
+        from ..sheets import contact_sheet
         from .report import caption, error_caption
-        from .sheet import contact_sheet, tonemap_groups
+        from .sheet import tonemap_groups
 
         figure = FIGURES[name]()
         start = time.perf_counter()
