@@ -36,7 +36,7 @@ import numpy as np
 from ..backend import load_mitsuba
 from ..fresnel import same_eta
 from ..hashtable import capacity, empty, probe
-from ..profiles.incidence import GAIN_NODES, gain_table
+from ..profiles.incidence import GAIN_NODES, Orders, gain_table
 from .mis import power_heuristic
 from .surface import sample_surface
 
@@ -79,7 +79,7 @@ class Entry:
     beam, which is 1 unless ``orders`` and ``carried`` differ (then the light's single scattering, spread by the
     profile as its own: ``rho(1) / (rho - rho_1)(1)``)."""
 
-    def __init__(self, eta, albedo=None, orders="all", carried=None, oblique=True):
+    def __init__(self, eta, albedo=None, orders=Orders.ALL, carried=None, oblique=True):
         self.eta = float(eta)
         self.gains = None
         if albedo is not None:
@@ -104,12 +104,12 @@ class Entry:
                                     dr.gather(mi.Float, self.gains, node + c * GAIN_NODES + 1), t) for c in range(3)])
 
 
-def keeps_irradiance(old, new, incidence, orders="all"):
+def keeps_irradiance(old, new, incidence, orders=Orders.ALL):
     """Whether samples lit for the material ``old`` keep their irradiance for ``new``: the same ``eta`` (``F_t``)
     and, where a gain depends on it (:class:`Entry`: ``incidence`` oblique, or a profile carrying ``orders``
     multiple, whose indirect light counts its single scattering), the same reduced albedo to the float32 rounding of
     the scene's coefficients (a preset in float64 and the same preset read back from the scene are one medium)."""
-    gained = incidence == "oblique" or orders != "all"
+    gained = incidence == "oblique" or orders != Orders.ALL
     same_albedo = np.allclose(old.albedo_prime, new.albedo_prime, rtol=1e-6, atol=0.0)
     return same_eta(old.eta, new.eta) and (not gained or same_albedo)
 
@@ -151,7 +151,7 @@ def _area_irradiance(scene, emitters, it, entry, rng):
     return total
 
 
-def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, albedo=None, orders="all"):
+def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, albedo=None, orders=Orders.ALL):
     """``E_i`` (N, 3) numpy at the points ``position`` with outward ``normal`` (Dr.Jit arrays, scene units).
 
     Parameters
@@ -253,7 +253,7 @@ def _voxel_ranks(points, owners, spacing):
     return key, rank
 
 
-def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None, albedo=None, orders="all",
+def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None, albedo=None, orders=Orders.ALL,
                         oblique=True):
     """``(E_ind, deferred)``: paper Eq. 2 over the light that reaches the points after at least one bounce, (N, 3)
     numpy, and the paths' hits on translucent objects that have no transport yet (``incident``'s).
@@ -297,7 +297,7 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         What ``incident`` returned besides the radiance, over all the paths.
     """
     n = dr.width(position)
-    entry = Entry(eta, albedo, "all", carried=orders, oblique=oblique)
+    entry = Entry(eta, albedo, Orders.ALL, carried=orders, oblique=oblique)
     per_point = max(1, round(paths)) if paths >= 1 else 1
     if paths >= 1:
         owners = np.repeat(np.arange(n), per_point)
@@ -345,7 +345,7 @@ def sample_count(area_mm2, cell_mm, sample_density, profile_area_mm2=math.inf, p
 
 
 def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=0, stage=None, oblique=False,
-                   orders="all"):
+                   orders=Orders.ALL):
     """Scene -> samples, the data flow's first arrow: about ``count`` stratified points over the whole surface of the
     translucent object ``obj``, with their area, outward normal and irradiance (paper Eq. 2), in mm.
 

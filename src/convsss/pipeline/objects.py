@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import ConvsssError
 from ..materials import Material
+from ..profiles.incidence import Orders
 from ..profiles.models import DEFAULT_TOTAL, PROFILE_MODELS, parse_profile_spec, resolve_profile
 from ..scene.presets import any_named_media, check_boundary, check_color_model, named_medium_of
 from .media import SURVEY_POINTS, MediumField, medium_classes
@@ -450,7 +451,7 @@ def world_area(shape, to_world):
     return float(np.sum(area.numpy(), dtype=np.float64))
 
 
-def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_TOTAL, orders="all"):
+def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_TOTAL, orders=Orders.ALL):
     """Every translucent shape of ``scene`` as a :class:`TranslucentObject`; a one-line error when there is none.
 
     ``profile`` is the renderer's ``profile`` parameter (:func:`~convsss.profiles.models.parse_profile_spec`): a

@@ -8,6 +8,7 @@ convolution, ``epsilon`` of the hierarchical method): every declaration has one 
 
 from ..errors import ConvsssError
 from ..parameters import Parameter, check_parameters
+from ..profiles.incidence import Orders
 from ..profiles.models import DEFAULT_PROFILE, DEFAULT_TOTAL, PROFILE_TOTALS, parse_profile_spec
 
 SPECULARS = ("bsdf", "phong", "none")
@@ -201,9 +202,9 @@ class RenderParams:
 
     @property
     def orders(self):
-        """What the profiles and their gains carry (:data:`~convsss.profiles.incidence.ORDERS`): ``multiple`` where
-        the shader traces single scattering, else ``all``."""
-        return "multiple" if self._renderer["single_scattering"] == "traced" else "all"
+        """What the profiles and their gains carry (:class:`~convsss.profiles.incidence.Orders`): multiple where the
+        path tracer traces single scattering, else all."""
+        return Orders.MULTIPLE if self._renderer["single_scattering"] == "traced" else Orders.ALL
 
     def ignored(self):
         """The options given that belong to another transport than the chosen one (kept, and ignored by it)."""

@@ -74,7 +74,7 @@ import drjit as dr
 import numpy as np
 
 from ..backend import load_mitsuba
-from ..profiles.incidence import exit_normalization
+from ..profiles.incidence import Orders, exit_normalization
 from .irradiance import Entry, fresnel_transmittance, refracted_cosine
 from .mesh_exitance import MeshExitance, usable
 from .mis import power_heuristic
@@ -107,7 +107,7 @@ class Leaving:
     channel (Eq. O4), what multiplies paper Eq. 7's ``(1/pi) F_t(eta, w_o)`` (the gain is
     :class:`~convsss.pipeline.irradiance.Entry`'s)."""
 
-    def __init__(self, eta, albedo, orders="all"):
+    def __init__(self, eta, albedo, orders=Orders.ALL):
         self.entry = Entry(eta, albedo, orders)
         self.scale = mi.Color3f(*(1.0 / exit_normalization(np.asarray(albedo, dtype=np.float64), eta,
                                                            orders)).tolist())

@@ -42,7 +42,7 @@ without an internal reflection is ``alpha'/(4 pi) / (mu + mu_0)`` (``H = 1``); i
 
     rho_1(mu_0) = 2 pi ∫ (1 - F_r(1/eta, mu)) alpha'/(4 pi) mu / (mu + mu_0) dmu,                         (Eq. S1)
 
-``(alpha'/2) (1 - mu_0 ln(1 + 1/mu_0))`` when index-matched; ``orders = "multiple"`` gives ``rho - rho_1``, what the
+``(alpha'/2) (1 - mu_0 ln(1 + 1/mu_0))`` when index-matched; ``Orders.MULTIPLE`` gives ``rho - rho_1``, what the
 profile then carries, with its gains (Eq. O1, O4) taken from that part alone.
 
 Both are azimuth-independent for isotropic scattering, so a Gauss–Legendre rule in ``mu`` solves them to
@@ -50,6 +50,7 @@ machine precision. ``rho(1) / T_d(eta)`` is the slab's total reflectance that ``
 by Monte Carlo (:mod:`convsss.profiles.slab`, which also takes an oblique beam: the tests compare both).
 """
 
+from enum import Enum
 from functools import lru_cache
 
 import numpy as np
@@ -61,8 +62,19 @@ from ..fresnel import check_eta, diffuse_transmittance, fresnel_reflectance
 NODES = 96
 #: Nodes of the gain tables (uniform in the cosine inside the medium, 0 to 1).
 GAIN_NODES = 65
-#: What of the escaping light counts: ``all`` of it, or the ``multiple`` scattering (all but Eq. S1).
-ORDERS = ("all", "multiple")
+class Orders(str, Enum):
+    """What of the escaping light a profile and its gains carry: ``all`` of it, or the ``multiple`` scattering (all
+    but the single scattering of Eq. S1, which the path tracer traces). Equal to its name as a string."""
+
+    ALL = "all"
+    MULTIPLE = "multiple"
+
+    def __str__(self):
+        return self.value
+
+
+#: The names :class:`Orders` takes.
+ORDERS = tuple(o.value for o in Orders)
 
 
 def _rule(eta=1.0):
@@ -117,7 +129,7 @@ def _check_albedo(albedo):
     return min(albedo, 1.0 - 1e-7)  # alpha' = 1 as its limit (g is within 5e-4 of 1; the iteration needs absorption)
 
 
-def escaped(albedo, eta, mu, orders="all"):
+def escaped(albedo, eta, mu, orders=Orders.ALL):
     """``rho(mu)`` of Eq. O3: the flux that leaves the half-space per unit flux transmitted into it at cosine ``mu``
     (inside the medium, to the inward normal; array-like in (0, 1]). Reduced albedo ``albedo``, relative index
     ``eta`` of a smooth boundary (1: index-matched); ``orders`` multiple: without the single scattering of Eq. S1."""
@@ -134,13 +146,13 @@ def escaped(albedo, eta, mu, orders="all"):
     back = fresnel_reflectance(1.0 / eta, nodes)
     kernel = 0.5 * albedo * h[:, None] * h * w * nodes / (nodes[:, None] + nodes) * back
     u = np.linalg.solve(np.eye(NODES) - kernel, first.reshape(-1, NODES).T).T.reshape(first.shape)
-    if orders == "multiple":
+    if orders == Orders.MULTIPLE:
         u = u - albedo / (4.0 * np.pi) / (nodes + mu0[..., None])  # less Eq. S1's once-scattered radiance
     return 2.0 * np.pi * np.sum(w * nodes * (1.0 - back) * u, axis=-1)  # Eq. O3
 
 
 @lru_cache(maxsize=512)
-def gain_table(albedo, eta, orders="all", carried=None):
+def gain_table(albedo, eta, orders=Orders.ALL, carried=None):
     """Eq. O1 at :data:`GAIN_NODES` cosines ``0, ..., 1`` inside the medium (1 where nothing scatters), read back
     linearly by :func:`gain`: the flux of the light of ``orders`` (:data:`ORDERS`) over the normal beam's flux of the
     light the profile carries, ``carried`` (default: ``orders``); ``orders`` all, ``carried`` multiple is light whose
@@ -159,7 +171,7 @@ def transmitted_cosine(eta, cos_outside):
     return np.sqrt(np.maximum(1.0 - (1.0 - cos_outside**2) / check_eta(eta) ** 2, 0.0))
 
 
-def gain(albedo, eta, cos_outside, orders="all"):
+def gain(albedo, eta, cos_outside, orders=Orders.ALL):
     """Per channel, Eq. O1 for light arriving from outside at ``cos_outside``: (..., 3) for ``albedo`` of shape (3,)."""
     mu = transmitted_cosine(eta, cos_outside)
     nodes = np.linspace(0.0, 1.0, GAIN_NODES)
@@ -171,7 +183,7 @@ def gain(albedo, eta, cos_outside, orders="all"):
 EXIT_NODES = 4097
 
 
-def exit_normalization(albedo, eta, orders="all"):
+def exit_normalization(albedo, eta, orders=Orders.ALL):
     """``k`` of Eq. O4 per channel, (3,) for ``albedo`` of shape (3,): ``(2 / T_d) ∫ F_t(eta, mu) g mu dmu`` over
     the outside cosine ``mu`` (the gain read as :func:`gain` reads it), so that ``F_t g / (pi k)`` sends out ``T_d``
     of ``M`` as paper Eq. 7 does."""

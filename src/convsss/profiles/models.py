@@ -17,7 +17,7 @@ from ..fresnel import check_eta, diffuse_transmittance
 from ..materials import DEFAULT_ETA, Material
 from . import beam_diffusion, better_dipole, burley, dipole  # noqa: F401  (each registers its model)
 from .base import CHANNELS, PROFILE_MODELS, ScaledProfile
-from .incidence import escaped
+from .incidence import Orders, escaped
 from .tabulated import TabulatedProfile
 
 #: The renderer's default of :data:`PROFILE_MODELS` (each model registers itself, :mod:`.base`), chosen by
@@ -55,7 +55,7 @@ def is_model(spec):
     return spec in PROFILE_MODELS
 
 
-def exact_total(albedo, eta, orders="all"):
+def exact_total(albedo, eta, orders=Orders.ALL):
     """The total reflectance of a half-space of reduced albedo ``albedo`` (any shape, e.g. (3,) per channel) under a
     boundary of index ``eta``, in the normalization of Eq. 1: ``rho(1) / T_d(eta)``, ``rho`` the exact escaped flux
     of Eq. O3 (:mod:`.incidence`; the Monte Carlo slab agrees within its noise); ``orders`` multiple: without single
@@ -65,7 +65,7 @@ def exact_total(albedo, eta, orders="all"):
     return rho / diffuse_transmittance(eta)
 
 
-def model_profile(model, material, total="model", orders="all"):
+def model_profile(model, material, total="model", orders=Orders.ALL):
     """The profile of ``material`` (a :class:`~convsss.materials.Material`) by the model called ``model``; with
     ``total`` exact, scaled per channel to :func:`exact_total` of ``orders`` (a
     :class:`~convsss.profiles.ScaledProfile`)."""
@@ -139,7 +139,7 @@ def profile_files(text):
     return [Path(s) for s in [default, *per_object.values()] if not is_model(s)]
 
 
-def resolve_profile(spec, material, total, orders="all"):
+def resolve_profile(spec, material, total, orders=Orders.ALL):
     """The :class:`~convsss.profiles.Profile` for ``spec`` (a model name or a CSV path) and ``material``; a model's
     total per ``total`` (:data:`PROFILE_TOTALS`) and ``orders``, a tabulated profile's as given."""
     if is_model(spec):
