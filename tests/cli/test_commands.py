@@ -397,6 +397,8 @@ def test_read_only_output_folder_fails_before_the_render(studio):
 
 @pytest.mark.parametrize("args, message", [
     (("--seed", -5), "Invalid value for '--seed': -5 is not in the range 0<=x<=4294967295"),
+    (("--spp", 0), "Invalid value for '--spp'"),
+    (("--spp", -3), "Invalid value for '--spp'"),
     (("--seed", "1e23"), "Invalid value for '--seed'"),
     (("--seed", 2**32), "Invalid value for '--seed'"),
     (("--exposure", "nan"), "exposure=nan is not allowed"),

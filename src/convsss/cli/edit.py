@@ -5,7 +5,6 @@ import dataclasses
 
 import click
 
-from ..errors import ConvsssError
 from .main import cli
 from .options import integrator_options, pick_sensor, render_params, scene_source_options
 
@@ -33,8 +32,6 @@ def edit(source, spp, sensor, seed, target, port, open_browser, **integrator):
       convsss edit scene.xml --object bunny --port 8123
       convsss edit --mesh bunny --material wholemilk --size-mm 40 --floor --width 512 --height 512
     """
-    if spp is not None and spp < 1:
-        raise ConvsssError(f"spp={spp} is not allowed: it must be >= 1")
     quick = source.quick
     defaults = {"specular": "phong"} if quick else {}
     render_params(integrator, defaults)  # bad values fail before anything is loaded

@@ -130,7 +130,7 @@ def scene_source_options(func=None, *, preview=False):
                           "of refraction, or index-matched (null)."),
         click.option("--width", type=int, help=f"Film width in pixels ({size})."),
         click.option("--height", type=int, help=f"Film height in pixels ({size})."),
-        click.option("--spp", type=int, help=f"Samples per pixel ({spp})."),
+        click.option("--spp", type=click.IntRange(1), help=f"Samples per pixel ({spp})."),
         click.option("--sensor", type=click.IntRange(0), default=None,
                      help="Which of the scene's sensors to render, from 0 (default: the first; a note names the "
                           "others)."),

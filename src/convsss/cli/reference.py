@@ -7,7 +7,6 @@ import warnings
 
 import click
 
-from ..errors import ConvsssError
 from ..files import check_outputs, text_writer, write_files
 from ..scene.quick import SPP
 from .main import cli
@@ -26,7 +25,7 @@ from .options import (
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Output stem: OUT.exr (linear), OUT.png (tone-mapped) and OUT.json (passes, spp, seconds), "
                    "rewritten together after every pass.")
-@click.option("--pass-spp", type=int, default=16, show_default=True,
+@click.option("--pass-spp", type=click.IntRange(1), default=16, show_default=True,
               help="Samples per pixel of each pass; the image so far is saved after each pass.")
 @click.option("--strict", is_flag=True,
               help="A pass black over every pixel of the translucent objects is an error (exit code 1, nothing "
@@ -51,10 +50,6 @@ def reference(source, spp, sensor, seed, output, pass_spp, strict, tonemap, key,
     from ..image import exr_writer, png_writer
     from ..pipeline.reference import BlackPassWarning, render_reference
 
-    if pass_spp < 1:
-        raise ConvsssError(f"--pass-spp {pass_spp} is not allowed: it must be >= 1")
-    if spp is not None and spp < 1:
-        raise ConvsssError(f"--spp {spp} is not allowed: it must be >= 1")
     start = time.perf_counter()
     exr, png, info = output_paths(output, ".exr", ".png", ".json")
     check_outputs([exr, png, info], [*source.inputs(), *([exposure_from] if exposure_from else [])])

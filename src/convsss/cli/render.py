@@ -16,7 +16,6 @@ import click
 import numpy as np
 
 from .. import pipeline
-from ..errors import ConvsssError
 from ..files import check_outputs, json_ready, write_files
 from ..scene.quick import SPP
 from .main import cli
@@ -121,8 +120,6 @@ def render(source, spp, sensor, seed, output, write_mask, tonemap, key, exposure
       convsss render --mesh bunny --color 0.8,0.5,0.4 --mfp-mm 2 --size-mm 40 -o out/colour
       convsss render scene.xml -o out/scene --aovs exitance,object --mask
     """
-    if spp is not None and spp < 1:
-        raise ConvsssError(f"spp={spp} is not allowed: it must be >= 1")
     start = time.perf_counter()
     quick = source.quick
     defaults = {"specular": "phong"} if quick else {}
