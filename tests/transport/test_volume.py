@@ -1,6 +1,6 @@
-"""The volume transport (transport/volume.py) against diffusion theory: the lattice's decay (Eq. D3), the half-space's
-uniform exitance (Eq. 1 by construction), a slab lit on one face (the closed form of docs/incidence/transmission.py),
-and its refusals."""
+"""The volume transport (transport/volume/) against diffusion theory: the lattice's decay (Eq. D3), the half-space's
+uniform exitance (Eq. 1 by construction), a slab lit on one face (the closed form of
+docs/history/scripts/incidence-transmission.py), and its refusals."""
 
 import dataclasses
 
@@ -32,7 +32,7 @@ def _slab(thickness, half_width=15.0, spacing=0.2):
 
 def _slab_theory(dipole, d):
     """Per channel, the 1-D diffusion slab's exitance at the lit face and the far face per unit incident flux
-    (Fick's flux, extrapolated boundaries; docs/incidence/transmission.py)."""
+    (Fick's flux, extrapolated boundaries; docs/history/scripts/incidence-transmission.py)."""
     sigma, z_r = np.asarray(dipole.sigma_tr), np.asarray(dipole.z_r)
     z_b = 0.5 * (np.asarray(dipole.z_v) - z_r)
     scale = dipole.alpha_prime * np.cosh(sigma * z_b) / np.sinh(sigma * (d + 2 * z_b))

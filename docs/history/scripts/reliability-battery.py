@@ -1,7 +1,7 @@
 """The reliability battery of issue 30, rebuilt from the issue's descriptions: each case runs as a user would run
 it (a fresh ``convsss`` process, or a fresh Python for the API cases) and is classified by what came back.
 
-    PYTHONPATH=src python docs/reliability/battery.py [OUT_DIR]
+    PYTHONPATH=src python docs/history/scripts/reliability-battery.py [OUT_DIR]
 
 Classes: ``correct`` (exit 0 and the expected output), ``clear error`` (exit 2 and one ``error:`` line, no
 traceback), ``traceback`` (a Python traceback on stderr), ``crash`` (killed by a signal: segfault, abort),

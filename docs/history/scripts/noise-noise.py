@@ -9,7 +9,7 @@ pixel centres (the same points for every seed; the image at high spp inherits ex
 of :mod:`convsss.compare` (1 % of the channel's mean); printed: its mean and 95th percentile over the object's
 pixels, the largest over the channels, and the median seconds of the stages.
 
-    PYTHONPATH=src python docs/noise/noise.py SCENE WIDTH SEEDS DENSITY:IRRADIANCE:INDIRECT[:EXTRA=V...][,...]
+    PYTHONPATH=src python docs/history/scripts/noise-noise.py SCENE WIDTH SEEDS DENSITY:IRRADIANCE:INDIRECT[:EXTRA=V...][,...]
 
 SCENE: a material key and the bunny's size in mm, e.g. ``milk40`` (the demo: 40 mm wholemilk bunny on the floor,
 dielectric boundary, key and back point lights), ``dense10`` (a 10 mm bunny of ``--color 0.8,0.6,0.4 --mfp-mm

@@ -1,7 +1,7 @@
 """Indirect light against volpathmis (docs/benchmarks.md): mean(convsss) / mean(volpathmis) over the object's pixels,
 per scene, with its surroundings (floor, box walls, a second object) and without them.
 
-    PYTHONPATH=src python docs/indirect/ratio.py SCENES INDIRECT_SAMPLES [SPP [INTEGRATOR_JSON]]
+    PYTHONPATH=src python docs/history/scripts/indirect-ratio.py SCENES INDIRECT_SAMPLES [SPP [INTEGRATOR_JSON]]
 
 SCENES: comma-separated names (see SCENES, and milk-pair) or all; INDIRECT_SAMPLES: comma-separated values; SPP: the
 volpathmis references' samples per pixel (default 64), cached in out/indirect-cache/; INTEGRATOR_JSON: more convsss

@@ -1,8 +1,8 @@
 """Light that crosses an object: an experiment, not a transport (docs/benchmarks.md, "Light through the object:
 kernels that see the receiver's plane").
 
-    PYTHONPATH=src python docs/geometry/tangent_plane.py SCENE.xml RENDER.exr REFERENCE.exr [FIGURE.png]
-    PYTHONPATH=src python docs/geometry/tangent_plane.py --limits     # the plane and thick-slab limits, checked
+    PYTHONPATH=src python docs/history/scripts/geometry-tangent_plane.py SCENE.xml RENDER.exr REFERENCE.exr [FIGURE.png]
+    PYTHONPATH=src python docs/history/scripts/geometry-tangent_plane.py --limits     # the plane and thick-slab limits, checked
 
 SCENE.xml is a `convsss scene` file (one translucent object), RENDER.exr a `convsss render SCENE.xml --aovs mask` of
 it and REFERENCE.exr its `convsss reference`. At the pixel centres that see the object, the script sums Eq. 1 exactly
@@ -29,7 +29,7 @@ and the tangent-plane kernel takes the entry point's source and its image throug
 ``t_v`` the image's depth under the receiver's plane. On a plane (``n_o = n_i``, ``t_v = -z_v``, ``w = 0``) it is
 Eq. T1 exactly; across a slab (``n_o = -n_i``, ``w = 1``) its four sources are the first terms of the slab's series
 of images, whose total is ``2 alpha' sinh(sigma_tr (z_r + z_b)) cosh(sigma_tr z_b) e^{-sigma_tr (d + 2 z_b)}``,
-the thick-slab limit of `docs/incidence/transmission.py`'s exact transmission. The blend (Eq. T4) keeps Eq. T1
+the thick-slab limit of `docs/history/scripts/incidence-transmission.py`'s exact transmission. The blend (Eq. T4) keeps Eq. T1
 where the two normals agree and Eq. T3 where they are opposite:
 
     K_blend = (1 - beta) R_d + beta K_tp,   beta = max(0, -n_o . n_i).

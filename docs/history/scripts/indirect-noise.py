@@ -2,7 +2,7 @@
 layers, Phong, 16 spp, seed 0) compared (convsss.compare, over the bunny's pixels) against the same render with 16
 indirect paths per sample, cached in out/indirect-cache/: only the indirect irradiance differs.
 
-    PYTHONPATH=src python docs/indirect/noise.py WIDTH MATERIAL PATHS:STRATA[,PATHS:STRATA...]
+    PYTHONPATH=src python docs/history/scripts/indirect-noise.py WIDTH MATERIAL PATHS:STRATA[,PATHS:STRATA...]
 """
 
 import os

@@ -1,7 +1,7 @@
 """Light that crosses an object (docs/benchmarks.md, "What is left on skin1"): a slab of thickness d lit from
 behind, in diffusion theory, against what paper Eq. 1 gives it with the half-space's dipole profile.
 
-    PYTHONPATH=src python docs/incidence/transmission.py [MATERIAL [D_MM ...]]
+    PYTHONPATH=src python docs/history/scripts/incidence-transmission.py [MATERIAL [D_MM ...]]
 
 Both in the dipole's diffusion theory (eta 1): one source of strength alpha' at depth z_r, extrapolated boundaries
 z_b = 2 A D. The slab's exact 1-D solution transmits, per unit of normal incident flux,

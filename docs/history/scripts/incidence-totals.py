@@ -1,7 +1,7 @@
 """Each profile model's total reflectance against the exact one of the same half-space (docs/benchmarks.md,
 "Oblique incidence"): ``rho(1) / T_d(eta)`` of :mod:`convsss.profiles.incidence`, the normalization of Eq. 1.
 
-    PYTHONPATH=src python docs/incidence/totals.py
+    PYTHONPATH=src python docs/history/scripts/incidence-totals.py
 """
 
 import dataclasses

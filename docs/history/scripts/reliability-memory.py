@@ -1,6 +1,6 @@
 """Resident memory over many renders of different presets in one process (issue 30: RSS flat within 50 MiB).
 
-    PYTHONPATH=src python docs/reliability/memory.py [RENDERS [SIZE]]
+    PYTHONPATH=src python docs/history/scripts/reliability-memory.py [RENDERS [SIZE]]
 
 Renders the bundled bunny (20 mm, null boundary, SIZE² pixels, default 64, 1 spp) with the first RENDERS presets
 of ``convsss materials`` (default 30) in turn, in one process (a preset refused before any allocation counts as a
