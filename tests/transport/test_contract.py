@@ -19,8 +19,9 @@ ACCURATE = {"convolution": {"layers": 16, "threshold": 0.0, "resolution": 256}, 
             "multiscale": {"accuracy": 0.001}, "volume": {"accuracy": 0.001}}
 
 
-def _make(kind, samples, profile, **params):
-    return make_transport(kind, samples, profile, FRAME, **{**ACCURATE.get(kind, {}), **params})
+def _make(kind, samples, profile, medium, **params):
+    """The transport ``kind`` of ``profile``, the model of the material ``medium``."""
+    return make_transport(kind, samples, profile, FRAME, medium, **{**ACCURATE.get(kind, {}), **params})
 
 
 def _slab(half_width, spacing):
@@ -53,7 +54,7 @@ def test_slab_exits_total_reflectance(kind):
     skin = model_profile("dipole", material("skin1"))
     slab = _slab(25.0, 0.25)
     centre = np.array([[0.0, 0.0, 0.0], [0.5, -0.5, 0.0]])
-    exitance = _make(kind, slab, skin).exitance(centre)
+    exitance = _make(kind, slab, skin, material("skin1")).exitance(centre)
     np.testing.assert_allclose(exitance, np.tile(skin.total_reflectance, (2, 1)), rtol=0.01)
 
 
@@ -78,7 +79,8 @@ def test_point_source_reproduces_the_profile(kind):
     source = IrradianceSamples(position, 1.0, irradiance, np.tile([0.0, 0.0, 1.0], (len(position), 1)))
     r = np.arange(3, 40) * cell
     grid = {"resolution": None, "cell_size": cell} if kind == "convolution" else {}
-    exitance = _make(kind, source, model_profile("dipole", milk), **grid).exitance(np.stack([r, 0 * r, 0 * r], axis=1))
+    exitance = _make(kind, source, model_profile("dipole", milk), milk, **grid).exitance(
+        np.stack([r, 0 * r, 0 * r], axis=1))
     np.testing.assert_allclose(exitance, model_profile("dipole", milk)(r), rtol=0.02)
 
 
@@ -91,8 +93,8 @@ def test_agrees_with_the_exact_sum_deterministic_and_non_negative(kind):
     samples = _sphere()
     points, normals = samples.position[::7], samples.normal[::7]
     exact = make_transport("exact", samples, skin).exitance(points)
-    first = _make(kind, samples, skin).exitance(points, normals)
-    again = _make(kind, samples, skin).exitance(points, normals)
+    first = _make(kind, samples, skin, material("skin1")).exitance(points, normals)
+    again = _make(kind, samples, skin, material("skin1")).exitance(points, normals)
     np.testing.assert_array_equal(first, again)
     assert first.min() >= 0
     if TRANSPORTS[kind].sums_eq1:
@@ -108,10 +110,11 @@ def test_relit_equals_a_transport_built_for_the_new_irradiance(kind):
     samples = _sphere()
     points = samples.position[::7]
     other = samples.irradiance * np.linspace(0.2, 2.0, len(samples))[:, None] + [0.0, 0.1, 0.3]
-    first = _make(kind, samples, skin)
+    first = _make(kind, samples, skin, material("skin1"))
     before = first.exitance(points)
     relit = first.relit(other).exitance(points)
-    fresh = _make(kind, IrradianceSamples(samples.position, samples.area, other, samples.normal), skin)
+    fresh = _make(kind, IrradianceSamples(samples.position, samples.area, other, samples.normal), skin,
+                  material("skin1"))
     np.testing.assert_allclose(relit, fresh.exitance(points), rtol=1e-6, atol=1e-9 * np.abs(before).max())
     np.testing.assert_array_equal(first.exitance(points), before)
 
@@ -154,10 +157,10 @@ def test_planned_bytes_are_known_before_the_samples_and_bound_what_is_built(kind
     params = {**ACCURATE.get(kind, {}), **({"cell_size": 0.05} if cls.accepts("cell_size") else {})}
     if kind == "convolution":
         params.pop("resolution")
-    planned = cls.planned_bytes(bounds, skin, len(sphere), params)
+    planned = cls.planned_bytes(bounds, skin, len(sphere), params, material("skin1"))
     assert isinstance(planned, int) and planned >= 0
     assert cls.layer_cell(0.2, {}) == 0.2 or kind == "convolution"
-    built = make_transport(kind, sphere, skin, FRAME, **params)
+    built = make_transport(kind, sphere, skin, FRAME, material("skin1"), **params)
     if kind == "multiscale":
         from convsss.transport.multiscale import far_bytes
 

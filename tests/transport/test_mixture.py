@@ -19,7 +19,9 @@ LINEAR = {"convolution": {"threshold": 0.0}}
 
 
 def _make(kind):
-    return lambda samples, profile: make_transport(kind, samples, profile, FRAME, **LINEAR.get(kind, {}))
+    """``make(samples, profile, medium)``: the transport ``kind`` of one class."""
+    return lambda samples, profile, medium: make_transport(kind, samples, profile, FRAME, medium,
+                                                           **LINEAR.get(kind, {}))
 
 
 def _sphere(n=1500, radius=2.0, seed=0):
@@ -40,24 +42,25 @@ def _weights(samples, count, seed=1):
 def test_one_profile_in_any_classes_is_the_plain_transport(kind):
     samples = _sphere()
     skin = model_profile("dipole", material("skin1"))
-    plain = _make(kind)(samples, skin)
+    plain = _make(kind)(samples, skin, material("skin1"))
     points, normals = samples.position[::7], samples.normal[::7]
     expected = plain.exitance(points, normals)
-    one = MixtureTransport(samples, [skin], np.ones((len(samples), 1, 3)), _make(kind))
+    one = MixtureTransport(samples, [skin], np.ones((len(samples), 1, 3)), _make(kind), [material("skin1")])
     np.testing.assert_allclose(one.exitance(points, normals), expected, rtol=1e-12)
     # Split over three classes, the approximate transports build other clusters, cells and layers: within their
     # accuracy (the exact sum is linear to rounding)
-    three = MixtureTransport(samples, [skin] * 3, _weights(samples, 3), _make(kind))
+    three = MixtureTransport(samples, [skin] * 3, _weights(samples, 3), _make(kind), [material("skin1")] * 3)
     np.testing.assert_allclose(three.exitance(points, normals), expected, rtol=1e-9 if kind == "exact" else 0.01)
 
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_relit_mixture_answers_as_one_built_for_the_new_light(kind):
     samples, other = _sphere(seed=0), _sphere(seed=5)
-    profiles = [model_profile("dipole", material(name)) for name in ("skin1", "marble")]
+    media = [material(name) for name in ("skin1", "marble")]
+    profiles = [model_profile("dipole", m) for m in media]
     weights = _weights(samples, 2)
-    relit = MixtureTransport(samples, profiles, weights, _make(kind)).relit(other.irradiance)
-    built = MixtureTransport(other, profiles, weights, _make(kind))
+    relit = MixtureTransport(samples, profiles, weights, _make(kind), media).relit(other.irradiance)
+    built = MixtureTransport(other, profiles, weights, _make(kind), media)
     points = samples.position[::11]
     np.testing.assert_allclose(relit.exitance(points), built.exitance(points), rtol=1e-9)
     assert relit.stats["classes"] == 2 and relit.stats["samples"] == len(samples)
@@ -75,7 +78,7 @@ def test_two_classes_lie_between_their_media():
     profiles = [model_profile("dipole", m) for m in media]
     left = (x < 0).astype(float)
     weights = np.stack([left, 1 - left], axis=1)[:, :, None] * np.ones(3)
-    mixed = MixtureTransport(samples, profiles, weights, _make("exact"))
+    mixed = MixtureTransport(samples, profiles, weights, _make("exact"), media)
     pure = [make_transport("exact", samples, p, FRAME) for p in profiles]
     row = np.flatnonzero(np.abs(y) < spacing)
     points, normals = position[row], samples.normal[row]

@@ -44,7 +44,7 @@ def test_the_grid_decays_at_sigma_tr_along_its_axes():
     (with the plain sigma_a it would fall slower, by a relative (sigma_tr h)^2 / 24)."""
     skin = model_profile("dipole", material("skin1"))
     h = 0.5
-    k = coefficients(skin, h)
+    k = coefficients(skin, material("skin1"), h)
     n = 400
     link = k.diffusion / h**2
     for c in range(3):
@@ -60,7 +60,7 @@ def test_the_half_space_response_holds_the_one_dimensional_solution():
     (Eq. D4) on a grid fine enough that no source is moved (Eq. D5) and the first read is at the real surface."""
     skin = model_profile("dipole", material("skin1"))
     h = 0.25
-    k = coefficients(skin, h)
+    k = coefficients(skin, material("skin1"), h)
     assert np.allclose(k.source_gain, 1.0) and np.allclose(k.read_depths[0], k.z_b)
     reach = skin.radius_energy(1e-3)
     for c in range(2):
@@ -80,7 +80,7 @@ def test_a_uniformly_lit_half_space_exits_the_profile_total():
     x, y = np.meshgrid(xs, xs)
     plane = IrradianceSamples(np.stack([x.ravel(), y.ravel(), 0 * x.ravel()], axis=1), spacing**2,
                               np.ones((x.size, 3)), np.tile([0.0, 0.0, 1.0], (x.size, 1)))
-    transport = make_transport("volume", plane, milk, FRAME)
+    transport = make_transport("volume", plane, milk, FRAME, material("wholemilk"))
     assert transport.corrected.all()
     exitance = transport.exitance(np.array([[0.0, 0.0, 0.0], [1.0, -2.0, 0.0]]))
     np.testing.assert_allclose(exitance, np.tile(milk.total_reflectance, (2, 1)), rtol=0.01)
@@ -94,7 +94,7 @@ def test_a_slab_lit_on_one_face_transmits_what_diffusion_theory_gives(d):
     of the 1-D closed form (measured 1.010/0.998 at 2 mm, 1.002/0.997 at 5 mm; Eq. 1 gives 0.55/0.28 and
     0.39/0.18), the lit face within 2 % (measured 1.006/1.002 and 1.003/0.998; Eq. 1: 1.51 in red at 2 mm)."""
     dipole = _skin_at_eta_1()
-    transport = make_transport("volume", _slab(d), dipole, FRAME)
+    transport = make_transport("volume", _slab(d), dipole, FRAME, SKIN_AT_ETA_1)
     assert transport.corrected.tolist() == [True, True, False]
     lit, far = transport.exitance(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -d]]))
     reflected, transmitted = _slab_theory(dipole, d)
@@ -113,7 +113,8 @@ def test_the_slab_converges_to_diffusion_theory_as_the_spacing_falls():
     transmitted = _slab_theory(dipole, 2.0)[1][0]
     errors = []
     for h in (0.5, 0.35, 0.25):
-        far = make_transport("volume", _slab(2.0), dipole, FRAME, spacing=h).exitance(np.array([[0.0, 0.0, -2.0]]))
+        far = make_transport("volume", _slab(2.0), dipole, FRAME, SKIN_AT_ETA_1, spacing=h).exitance(
+            np.array([[0.0, 0.0, -2.0]]))
         errors.append(abs(far[0, 0] / transmitted - 1))
     assert errors[0] > errors[1] > errors[2] and errors[2] < 0.005
 
@@ -122,10 +123,10 @@ def test_profiles_without_coefficients_and_samples_without_normals_are_refused_i
     skin = model_profile("dipole", material("skin1"))
     plane = _slab(2.0, half_width=2.0)
     with pytest.raises(ConvsssError, match="the volume transport needs the samples' normals"):
-        make_transport("volume", dataclasses.replace(plane, normal=None), skin, FRAME)
+        make_transport("volume", dataclasses.replace(plane, normal=None), skin, FRAME, material("skin1"))
     tabulated = TabulatedProfile([0.0, 1.0, 2.0], [1.0, 0.5, 0.0])
     with pytest.raises(ConvsssError, match="needs a profile model with coefficients") as info:
-        make_transport("volume", plane, tabulated, FRAME)
+        make_transport("volume", plane, tabulated, FRAME, material("skin1"))
     assert "\n" not in str(info.value)
 
 
@@ -151,9 +152,13 @@ def _sphere_series(dipole, radius, gamma, terms=90):
     return flux
 
 
+#: skin1 index-matched, as the closed forms have it.
+SKIN_AT_ETA_1 = dataclasses.replace(material("skin1"), eta=1.0)
+
+
 def _skin_at_eta_1():
     """skin1's classic dipole with eta 1 and its own total, as the closed forms have it."""
-    return model_profile("dipole", dataclasses.replace(material("skin1"), eta=1.0), total="model")
+    return model_profile("dipole", SKIN_AT_ETA_1, total="model")
 
 
 def _sphere(radius, irradiance):
@@ -177,7 +182,7 @@ def test_on_a_sphere_the_exitance_is_the_diffusion_solution():
     irradiance[0] = 1.0 / (4 * np.pi * radius**2 / len(irradiance))
     samples = _sphere(radius, irradiance)
     normal = samples.normal
-    transport = make_transport("volume", samples, dipole, FRAME)
+    transport = make_transport("volume", samples, dipole, FRAME, SKIN_AT_ETA_1)
     gamma = np.radians([20.0, 40.0, 60.0, 90.0, 120.0, 150.0, 180.0])
     across = np.cross(normal[0], [1.0, 0.0, 0.0])
     across /= np.linalg.norm(across)
@@ -197,7 +202,7 @@ def test_a_uniformly_lit_sphere_exits_the_diffusion_solution():
     half-space's profile over chords (its plane total on a sphere), returns 0.69/0.73/0.80 of it."""
     dipole, radius = _skin_at_eta_1(), 5.0
     samples = _sphere(radius, np.ones((40000, 3)))
-    transport = make_transport("volume", samples, dipole, FRAME)
+    transport = make_transport("volume", samples, dipole, FRAME, SKIN_AT_ETA_1)
     assert transport.corrected.all()
     l_0 = _sphere_series(dipole, radius, np.zeros(1), terms=1)[:, 0]  # the series' uniform term
     exact = np.asarray(dipole.alpha_prime) * 4 * np.pi * radius**2 * l_0
@@ -211,9 +216,10 @@ def test_no_samples_or_no_resolved_channel_is_eq1():
     the volume transport is Eq. 1: the multiscale sum alone, no grid built."""
     skin = model_profile("dipole", material("skin1"))
     empty = IrradianceSamples(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
-    assert np.array_equal(make_transport("volume", empty, skin, FRAME).exitance(np.zeros((2, 3))), np.zeros((2, 3)))
+    assert np.array_equal(make_transport("volume", empty, skin, FRAME, material("skin1")).exitance(np.zeros((2, 3))),
+                          np.zeros((2, 3)))
     slab = _slab(2.0, half_width=4.0)
-    coarse = make_transport("volume", slab, skin, FRAME, spacing=2.0)
+    coarse = make_transport("volume", slab, skin, FRAME, material("skin1"), spacing=2.0)
     assert not coarse.corrected.any() and coarse.stats["unknowns"] == [0, 0, 0]
     points = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, -2.0]])
     np.testing.assert_array_equal(coarse.exitance(points),

@@ -97,6 +97,11 @@ class TranslucentObject:
         """Every profile the object's light spreads with: its classes' (a heterogeneous interior), or its one."""
         return self.class_profiles or (self.profile,)
 
+    @property
+    def materials(self):
+        """The material of each of :attr:`profiles`: its classes' (a heterogeneous interior), or its one."""
+        return tuple(self.classes.materials) if self.class_profiles else (self.material,)
+
     def with_material(self, material, profile):
         """This object made of one homogeneous ``material`` spreading light by ``profile`` (what the editor and
         :func:`convsss.fit` try; a heterogeneous interior's classes are dropped)."""

@@ -21,19 +21,20 @@ from .plan import transport_params
 
 def build_transports(samples, irradiance, objects, cells, frame, params, stage=None):
     """One transport per object (``params.transport`` with its parameters), from ``samples`` (their places) lit by
-    ``irradiance`` (N, 3 each), each with its object's profile (:class:`~.objects.TranslucentObject`; a medium that
-    varies in space: its classes', mixed by Eq. H1, :mod:`convsss.transport.mixture`) and its pixel footprint
-    ``cells`` (mm)."""
+    ``irradiance`` (N, 3 each), each with its object's profile and material (:class:`~.objects.TranslucentObject`; a
+    medium that varies in space: its classes', mixed by Eq. H1, :mod:`convsss.transport.mixture`) and its pixel
+    footprint ``cells`` (mm)."""
     stage = stage or (lambda name: nullcontext())
     out = []
     for s, e, obj, cell in zip(samples, irradiance, objects, cells):
-        def make(lit, profile, cell=cell):
-            return make_transport(params.transport, lit, profile, frame=frame, **transport_params(params, cell))
+        def make(lit, profile, material, cell=cell):
+            return make_transport(params.transport, lit, profile, frame, material, **transport_params(params, cell))
 
         lit = IrradianceSamples(s.position, s.area, e, s.normal)
         with stage("transport"):
-            out.append(make(lit, obj.profile) if obj.classes is None else
-                       MixtureTransport(lit, obj.class_profiles, obj.classes.weights(s.position, s.normal), make))
+            out.append(make(lit, obj.profile, obj.material) if obj.classes is None else
+                       MixtureTransport(lit, obj.class_profiles, obj.classes.weights(s.position, s.normal), make,
+                                        obj.materials))
     return out
 
 

@@ -210,7 +210,8 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
                           f"the memory and time limits allow; {count} used: expect about "
                           f"{(wanted / count) ** 0.7:.1f}x that noise", SampleNoiseWarning, stacklevel=4)
     bounds = view_bounds(obj, frame, p.unit_mm)
-    held = sum(transport.planned_bytes(bounds, profile, count, held_params) for profile in obj.profiles)
+    held = sum(transport.planned_bytes(bounds, profile, count, held_params, material)
+               for profile, material in zip(obj.profiles, obj.materials))
     held *= PARTS_PER_CLASS if obj.classes is not None else 1  # Eq. H1: each class's transports
     check_memory(count * BYTES_PER_SAMPLE + held,
                  f"{count} surface samples of {obj.name!r} ({_span(obj, p.unit_mm)}) and its {p.transport} transport",

@@ -34,15 +34,15 @@ def clear_caches():
     VOLUME_RESPONSES.clear()
 
 
-def make_transport(kind, samples, profile, frame=None, **params):
-    """The transport called ``kind``: ``TRANSPORTS[kind](samples, profile, frame, **params)``.
+def make_transport(kind, samples, profile, frame=None, material=None, **params):
+    """The transport called ``kind``: ``TRANSPORTS[kind](samples, profile, frame, material, **params)``.
 
     ``frame`` is the camera's :class:`~convsss.samples.ViewFrame` (the convolution needs it; the others accept
     ``None``); ``params`` are the transport's declared parameters (``TRANSPORTS[kind].parameters``).
     """
     if kind not in TRANSPORTS:
         raise ConvsssError(f"unknown transport {kind!r}: choose one of {', '.join(sorted(TRANSPORTS))}")
-    return TRANSPORTS[kind](samples, profile, frame, **params)
+    return TRANSPORTS[kind](samples, profile, frame, material, **params)
 
 
 __all__ = ["ConvolutionTransport", "ExactTransport", "HierarchicalTransport", "MultiscaleTransport", "TRANSPORTS",

@@ -29,7 +29,7 @@ def register_transport(cls):
 
 
 class Transport:
-    """Base class of every transport: ``Transport(samples, profile, frame, **params)``.
+    """Base class of every transport: ``Transport(samples, profile, frame, material, **params)``.
 
     Keeps the samples, the profile, the camera's :class:`~convsss.samples.ViewFrame` (``None`` where a transport
     needs none), the parameters checked against the class's declared :attr:`parameters` (defaults filled in) as
@@ -43,7 +43,7 @@ class Transport:
     #: The :class:`~convsss.parameters.Parameter` declarations of this transport's keyword parameters.
     parameters = ()
 
-    def __init__(self, samples, profile, frame=None, **params):
+    def __init__(self, samples, profile, frame=None, material=None, **params):
         if not isinstance(samples, IrradianceSamples):
             raise TypeError("samples must be an IrradianceSamples")
         if frame is not None and not isinstance(frame, ViewFrame):
@@ -51,6 +51,9 @@ class Transport:
         self.samples = samples
         self.profile = profile
         self.frame = frame
+        #: The object's :class:`~convsss.materials.Material` beside its profile (None where a caller gives none; a
+        #: transport that needs the medium's coefficients, the volume's diffusion, refuses that).
+        self.material = material
         self.params = check_parameters(self.parameters, params, f"the {self.name} transport")
         self.timings = StageTimer()
 
@@ -69,7 +72,7 @@ class Transport:
         return footprint
 
     @classmethod
-    def planned_bytes(cls, bounds, profile, count, params):
+    def planned_bytes(cls, bounds, profile, count, params, material=None):
         """Bytes this transport will hold, beyond the samples, for ``count`` samples within ``bounds`` (2, 3) mm of
         the camera's view frame, under ``params``: known before any sample is drawn, so that a render is refused
         before any work (:mod:`convsss.pipeline.plan`). None by default."""
@@ -112,7 +115,7 @@ class Transport:
 
     def _relit(self, samples):
         """A transport of ``samples`` (this one's but for their irradiance); by default built again."""
-        return type(self)(samples, self.profile, self.frame, **self.params)
+        return type(self)(samples, self.profile, self.frame, self.material, **self.params)
 
     def _rebuilt(self, samples):
         """For a :meth:`_relit` that keeps what depends on the samples' places: a shallow copy with ``samples`` and

@@ -246,8 +246,8 @@ class ConvolutionTransport(Transport):
         Parameter("workers", int, -1, "Threads for scipy.fft (-1: all cores).", low=-1, exposed=False),
     )
 
-    def __init__(self, samples, profile, frame, **params):
-        super().__init__(samples, profile, frame, **params)
+    def __init__(self, samples, profile, frame, material=None, **params):
+        super().__init__(samples, profile, frame, material, **params)
         p = self.params
         if not isinstance(frame, ViewFrame):
             raise ConvsssError("the convolution transport needs the camera's ViewFrame (frame=...)")
@@ -308,7 +308,7 @@ class ConvolutionTransport(Transport):
         return footprint / params.get("downsample", 1.0)
 
     @classmethod
-    def planned_bytes(cls, bounds, profile, count, params):
+    def planned_bytes(cls, bounds, profile, count, params, material=None):
         """The layers' grids and spectra (:func:`layer_grid`, :func:`grid_bytes`) over ``bounds``."""
         p = check_parameters(cls.parameters, params, f"the {cls.name} transport")
         grid = layer_grid(bounds[0], bounds[1], p["layers"], p["cell_size"], p["resolution"], p["downsample"],

@@ -27,8 +27,8 @@ class ExactTransport(Transport):
 
     name = "exact"
 
-    def __init__(self, samples, profile, frame=None, **params):
-        super().__init__(samples, profile, frame, **params)
+    def __init__(self, samples, profile, frame=None, material=None, **params):
+        super().__init__(samples, profile, frame, material, **params)
         with self.timings("profile_table"):
             self._radial = RadialTable.of(profile)
         self._flux = np.ascontiguousarray(samples.flux)

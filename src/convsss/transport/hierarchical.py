@@ -122,8 +122,8 @@ class HierarchicalTransport(Transport):
                   low=1, high=4096),
     )
 
-    def __init__(self, samples, profile, frame=None, **params):
-        super().__init__(samples, profile, frame, **params)
+    def __init__(self, samples, profile, frame=None, material=None, **params):
+        super().__init__(samples, profile, frame, material, **params)
         self.epsilon, self.leaf_size = self.params["epsilon"], self.params["leaf_size"]
         with self.timings("profile_table"):
             self._radial = RadialTable.of(profile)

@@ -31,14 +31,16 @@ SMALL_WEIGHT = 1e-6
 
 class MixtureTransport:
     """Eq. H1 over ``samples`` (:class:`~convsss.samples.IrradianceSamples`) whose class weights are ``weights``
-    (N, K, 3), with one of ``profiles`` (K) per class; ``make(samples, profile)`` builds one class's transport (the
+    (N, K, 3), with one of ``profiles`` and of ``materials`` (K) per class; ``make(samples, profile, material)`` builds
+    one class's transport (the
     render's kind, its parameters). Answers what a transport answers: :meth:`exitance`, :meth:`relit`,
     :attr:`stats`."""
 
     name = "mixture"
 
-    def __init__(self, samples, profiles, weights, make):
+    def __init__(self, samples, profiles, weights, make, materials=None):
         self.samples, self.profiles, self.weights, self.make = samples, tuple(profiles), weights, make
+        self.materials = tuple(materials) if materials is not None else (None,) * len(self.profiles)
         self.profile = self.profiles[0]
         self.timings = StageTimer()
         self.members = [np.flatnonzero(weights[:, k, :].max(axis=1) > SMALL_WEIGHT * weights[:, k, :].max())
@@ -49,10 +51,11 @@ class MixtureTransport:
     def _build(self):
         s = self.samples
         self.entering = [self.make(IrradianceSamples(s.position[i], s.area[i], s.irradiance[i] * self.weights[i, k, :],
-                                                     None if s.normal is None else s.normal[i]), profile)
+                                                     None if s.normal is None else s.normal[i]), profile, material)
                          if SOURCE_SHARE > 0 and len(i) else None
-                         for k, (i, profile) in enumerate(zip(self.members, self.profiles))]
-        self.leaving = [self.make(s, profile) if SOURCE_SHARE < 1 else None for profile in self.profiles]
+                         for k, (i, profile, material) in enumerate(zip(self.members, self.profiles, self.materials))]
+        self.leaving = [self.make(s, profile, material) if SOURCE_SHARE < 1 else None
+                        for profile, material in zip(self.profiles, self.materials)]
 
     @property
     def query_batch(self):

@@ -50,7 +50,7 @@ class MultiscaleTransport(Transport):
         return sc, parts, kept
 
     @classmethod
-    def planned_bytes(cls, bounds, profile, count, params):
+    def planned_bytes(cls, bounds, profile, count, params, material=None):
         """The far-field mesh's spectra and the cell lists' offsets (:func:`far_mesh`, :class:`CellList`)."""
         lo, hi = bounds
         sc, _, kept = cls._split(profile, params, lo, hi)
@@ -70,8 +70,8 @@ class MultiscaleTransport(Transport):
             return super().sample_area(profile, params)
         return float(np.min(summed_area(profile, sc.radii, *split(profile, sc.radii, sc.local))))
 
-    def __init__(self, samples, profile, frame=None, **params):
-        super().__init__(samples, profile, frame, **params)
+    def __init__(self, samples, profile, frame=None, material=None, **params):
+        super().__init__(samples, profile, frame, material, **params)
         with self.timings("clusters"):  # the samples' places: which cluster each falls in, whatever its flux
             self._view = self._to_view(samples.position)
             self._lo, self._hi = bounds(self._view)

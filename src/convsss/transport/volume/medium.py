@@ -1,4 +1,4 @@
-"""The medium of the diffusion solve: its coefficients on a grid of spacing ``h`` (Eq. D1-D5) from the profile's
+"""The medium of the diffusion solve: its coefficients on a grid of spacing ``h`` (Eq. D1-D5) from the object's
 material, and the grid's spacing (:mod:`convsss.transport.volume`)."""
 
 from dataclasses import dataclass
@@ -6,7 +6,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import ConvsssError
-from ...profiles.base import ScaledProfile
 from ...profiles.dipole import DipoleProfile
 
 #: A channel is corrected where its diffusion length is at least this many cells (where it is shorter, what the
@@ -14,14 +13,13 @@ from ...profiles.dipole import DipoleProfile
 RESOLVED_LENGTH = 2.0
 
 
-def medium_of(profile):
-    """The classic dipole of the profile's coefficients (``sigma_s'``, ``sigma_a``, ``eta``): it names ``D``, ``z_r``
-    and ``A``; a one-line error for a profile without coefficients (a tabulated CSV)."""
-    base = profile.base if isinstance(profile, ScaledProfile) else profile
-    if not all(hasattr(base, k) for k in ("sigma_s_prime", "sigma_a", "eta")):
-        raise ConvsssError("the volume transport needs a profile model with coefficients (sigma_s', sigma_a, eta), "
-                           f"not {type(base).__name__}: use a model, or another transport")
-    return DipoleProfile(base.sigma_s_prime, base.sigma_a, base.eta)
+def medium_of(material):
+    """The classic dipole of the object's :class:`~convsss.materials.Material` (``sigma_s'``, ``sigma_a``,
+    ``eta``): it names ``D``, ``z_r`` and ``A``; a one-line error without one."""
+    if material is None:
+        raise ConvsssError("the volume transport needs the object's material (sigma_s', sigma_a, eta) beside its "
+                           "profile: make_transport(..., material=...)")
+    return DipoleProfile(material.sigma_s_prime, material.sigma_a, material.eta)
 
 
 @dataclass(frozen=True)
@@ -47,8 +45,9 @@ class Coefficients:
         return np.concatenate([self.diffusion, self.absorption, self.source_depth, self.read_depths.ravel()]).tobytes()
 
 
-def coefficients(profile, h):
-    """The :class:`Coefficients` of ``profile`` on a grid of spacing ``h``.
+def coefficients(profile, material, h):
+    """The :class:`Coefficients` of ``material`` on a grid of spacing ``h``, its sources' strength that of
+    ``profile``'s total reflectance.
 
     The grid's absorption makes the discrete equation decay along a grid axis at the continuous rate ``sigma_tr``
     (a lattice decays as ``cosh(kappa h) = 1 + sigma_a h^2 / (2 D)``, slower than ``sigma_tr`` by a relative
@@ -79,7 +78,7 @@ def coefficients(profile, h):
 
         d_s = max(z_r + z_b, 1.5 h),   gain g(z_r + z_b) / g(d_s).                                       (Eq. D5)
     """
-    dipole = medium_of(profile)
+    dipole = medium_of(material)
     sigma_t_prime = dipole.sigma_s_prime + dipole.sigma_a
     diffusion = 1.0 / (3.0 * sigma_t_prime)
     sigma_tr = np.asarray(dipole.sigma_tr, dtype=np.float64)
@@ -103,10 +102,10 @@ def coefficients(profile, h):
                         np.stack([w_1, w_2]))
 
 
-def auto_spacing(profile, extent):
+def auto_spacing(material, extent):
     """The grid spacing (mm) for an object of largest ``extent`` (mm): half the shortest diffusion length (the far
     field's scale), within [extent / 64, extent / 24]."""
-    dipole = medium_of(profile)
+    dipole = medium_of(material)
     with np.errstate(divide="ignore"):
         length = float(np.min(1.0 / dipole.sigma_tr))
     return float(np.clip(0.5 * length, extent / 64.0, extent / 24.0))

@@ -8,6 +8,7 @@ import numpy as np
 from ...errors import ConvsssError
 from ...memory import check_memory
 from ...parameters import Parameter
+from ...profiles.base import ScaledProfile
 from ...profiles.tabulated import TabulatedProfile
 from ...samples import IrradianceSamples
 from ..base import Transport, register_transport
@@ -33,6 +34,15 @@ OPEN_DEPTH = 3.0
 RESPONSES = KernelCache()
 
 
+def _model_of(profile):
+    """A one-line error for a profile that is no model of the material (a tabulated CSV): the correction of Eq. D2
+    is the diffusion of the object's material, which a measured profile need not be."""
+    base = profile.base if isinstance(profile, ScaledProfile) else profile
+    if isinstance(base, TabulatedProfile):
+        raise ConvsssError("the volume transport needs a profile model with coefficients (sigma_s', sigma_a, eta), "
+                           f"not {type(base).__name__}: use a model, or another transport")
+
+
 class VolumeTransport(Transport):
     """Eq. 1 summed by the multiscale transport, corrected by the diffusion equation solved on the object's volume
     (Eq. D2); see the module docstring. Needs the samples' normals."""
@@ -52,26 +62,28 @@ class VolumeTransport(Transport):
     memory_advice = "set a coarser spacing for the volume transport, or use the multiscale transport"
 
     @classmethod
-    def spacing_for(cls, bounds, profile, params):
-        """The grid spacing (mm) for samples within ``bounds`` (2, 3)."""
+    def spacing_for(cls, bounds, material, params):
+        """The grid spacing (mm) for samples within ``bounds`` (2, 3) of a medium of ``material``."""
         lo, hi = np.asarray(bounds, dtype=np.float64)
-        return params.get("spacing") or auto_spacing(profile, float(np.max(hi - lo)))
+        return params.get("spacing") or auto_spacing(material, float(np.max(hi - lo)))
 
     @classmethod
-    def planned_bytes(cls, bounds, profile, count, params):
+    def planned_bytes(cls, bounds, profile, count, params, material=None):
         """The grid (:data:`BYTES_PER_NODE` per node) and the two multiscale sums (their far meshes)."""
+        _model_of(profile)
         lo, hi = np.asarray(bounds, dtype=np.float64)
-        h = cls.spacing_for(bounds, profile, params)
-        _, shape = grid_shape(lo, hi, h, float(np.max(coefficients(profile, h).z_b)) + 2 * h)
+        h = cls.spacing_for(bounds, material, params)
+        _, shape = grid_shape(lo, hi, h, float(np.max(coefficients(profile, material, h).z_b)) + 2 * h)
         sums = MultiscaleTransport.planned_bytes(bounds, profile, count, {"accuracy": params.get("accuracy", 0.01)})
         return int(BYTES_PER_NODE * math.prod(shape) + 2 * sums)
 
-    def __init__(self, samples, profile, frame=None, **params):
-        super().__init__(samples, profile, frame, **params)
+    def __init__(self, samples, profile, frame=None, material=None, **params):
+        super().__init__(samples, profile, frame, material, **params)
+        _model_of(profile)
         if len(samples) and samples.normal is None:
             raise ConvsssError("the volume transport needs the samples' normals")
         self.spacing, self.corrected, self._sd = 0.0, np.zeros(3, dtype=bool), np.zeros((0, 0, 0))
-        self.coefficients, self._channels = coefficients(profile, 1.0), [(None, None, None)] * 3
+        self.coefficients, self._channels = coefficients(profile, material, 1.0), [(None, None, None)] * 3
         self._half = self._flat = None  # the two sums of Eq. D2, built by the first _build, relit by the others
         if len(samples):  # without samples there is nothing to solve for: Eq. 1 (of nothing)
             self._set_up()
@@ -83,8 +95,8 @@ class VolumeTransport(Transport):
         view = self._to_view(self.samples.position)
         normal = self._to_view(self.samples.normal, vectors=True)
         lo, hi = view.min(axis=0), view.max(axis=0)
-        self.spacing = h = self.spacing_for((lo, hi), self.profile, self.params)
-        self.coefficients = k = coefficients(self.profile, h)
+        self.spacing = h = self.spacing_for((lo, hi), self.material, self.params)
+        self.coefficients = k = coefficients(self.profile, self.material, h)
         reach = self._reach(h, float(np.linalg.norm(hi - lo)))
         with np.errstate(divide="ignore"):
             self.corrected = 1.0 / k.sigma_tr >= RESOLVED_LENGTH * h
