@@ -178,6 +178,123 @@ class _Variables:
                 np.concatenate([np.full(3, 25.0), np.full(3, np.log(MFP_BOUNDS_MM[1]))]))
 
 
+def _checked_images(target, mask, width, height):
+    """The target's RGB (float64) and the mask (bool, or None), one-line errors for either not of the film's
+    ``width`` x ``height``, a target not finite, a mask without a pixel."""
+    target = np.asarray(target, dtype=np.float64)[..., :3]
+    if target.shape[:2] != (height, width):
+        raise ConvsssError(f"the target is {target.shape[1]}x{target.shape[0]} pixels and the sensor's film "
+                           f"{width}x{height}: render the target at the film's size or resize the film")
+    if not np.all(np.isfinite(target)):
+        raise ConvsssError("the target holds NaN or infinite pixels: give a finite linear image")
+    if mask is not None:
+        mask = np.asarray(mask) != 0
+        if mask.shape != (height, width):
+            raise ConvsssError(f"the mask is {mask.shape[1]}x{mask.shape[0]} pixels and the film {width}x{height}")
+        if not mask.any():
+            raise ConvsssError("the mask holds no pixel: nothing to fit")
+    return target, mask
+
+
+def _object_to_fit(objects, name, fit_eta):
+    """The name of the translucent object to fit among ``objects``: ``name``, or the only one; one-line errors."""
+    found = {o.name: o for o in objects}
+    every = list(found)
+    if name is None and len(every) > 1:
+        raise ConvsssError(f"the scene has {len(every)} translucent objects ({', '.join(every)}): name one to fit "
+                           "(--object)")
+    if name is not None and name not in every:
+        raise ConvsssError(f"no translucent object {name!r}: the scene has {', '.join(every)}")
+    name = name or every[0]
+    if fit_eta and found[name].boundary == "null":
+        raise ConvsssError(f"translucent object {name!r} has a null (index-matched) boundary, whose eta is 1: "
+                           "fitting eta needs a dielectric or roughdielectric boundary")
+    return name
+
+
+class _Problem:
+    """The least-squares problem of a fit: its variables ``x`` (logit colour (3), log mfp (3), then log exposure and
+    log(eta - 1) where fitted), the residuals of the render against ``target`` over the pixels ``inside``, each
+    weighted by the target's value there (a relative error, floored at :data:`FLOOR` of the mean), and their
+    Jacobian by forward differences of ``STEP``, each channel's albedo at once, then each channel's mfp."""
+
+    def __init__(self, forward, base, inside, target, fit_exposure, fit_eta, progress):
+        self.forward, self.base, self.inside, self.progress = forward, base, inside, progress
+        self.fit_exposure, self.fit_eta = fit_exposure, fit_eta
+        self.goal = target[inside]
+        floor = FLOOR * np.maximum(self.goal.mean(axis=0), 1e-12)
+        self.weight = 1.0 / (self.goal + floor)
+        self.variables = _Variables(base.eta)
+        self.exposure_at, self.eta_at = 6, 6 + int(fit_exposure)
+        self.history, self.cache = [], {}
+        self.lower = self.upper = None
+
+    def split(self, x):
+        """``(albedo, mfp, exposure, eta)`` of the variables ``x``."""
+        albedo, mfp = self.variables.decode(x)
+        scale = float(np.exp(x[self.exposure_at])) if self.fit_exposure else 1.0
+        return albedo, mfp, scale, (1.0 + float(np.exp(x[self.eta_at])) if self.fit_eta else self.base.eta)
+
+    def start(self, albedo, mfp, eta):
+        """The variables of a start, and their bounds (kept for :meth:`solve`)."""
+        x0 = self.variables.encode(albedo, mfp)
+        lower, upper = self.variables.bounds()
+        if self.fit_exposure:
+            x0, lower, upper = np.append(x0, 0.0), np.append(lower, -20.0), np.append(upper, 20.0)
+        if self.fit_eta:
+            x0 = np.append(x0, np.log(eta - 1.0))
+            lower = np.append(lower, np.log(ETA_BOUNDS[0] - 1.0))
+            upper = np.append(upper, np.log(ETA_BOUNDS[1] - 1.0))
+        self.lower, self.upper = lower, upper
+        return x0
+
+    def render(self, albedo, mfp, eta):
+        """The render of a material (the last one kept: the Jacobian starts where the residuals were)."""
+        key = (tuple(albedo), tuple(mfp), eta)
+        if key not in self.cache:
+            self.cache.clear()
+            self.cache[key] = self.forward(material_of(albedo, mfp, eta, self.base.name))
+        return self.cache[key]
+
+    def residuals(self, x):
+        albedo, mfp, scale, eta = self.split(x)
+        r = (scale * self.render(albedo, mfp, eta)[self.inside] - self.goal) * self.weight
+        self.history.append(float(0.5 * np.sum(r**2)))
+        if self.progress is not None:
+            self.progress(self.forward.evaluations, self.history[-1])
+        return r.ravel()
+
+    def jacobian(self, x):
+        albedo, mfp, scale, eta = self.split(x)
+        here = self.render(albedo, mfp, eta)[self.inside]
+        n = here.shape[0]
+        columns = np.zeros((n, 3, len(x)))
+
+        def moved(block, width):
+            x_moved = x.copy()
+            x_moved[block:block + width] += STEP
+            a, m, _, e = self.split(x_moved)
+            return (self.forward(material_of(a, m, e, self.base.name))[self.inside] - here) * scale * self.weight / STEP
+
+        for block in (0, 3):  # every channel's alpha' at once, then every channel's mfp: the channels are apart
+            derivative = moved(block, 3)
+            for c in range(3):
+                columns[:, c, block + c] = derivative[:, c]
+        if self.fit_exposure:
+            columns[:, :, self.exposure_at] = scale * here * self.weight
+        if self.fit_eta:  # one index for every channel: one more render
+            columns[:, :, self.eta_at] = moved(self.eta_at, 1)
+        return columns.reshape(n * 3, len(x))
+
+    def solve(self, x, max_evaluations):
+        """SciPy's least squares from ``x`` (after :meth:`start`); the variables to 1e-5, far below what the image's
+        noise constrains."""
+        from scipy.optimize import least_squares
+
+        return least_squares(self.residuals, x, jac=self.jacobian, bounds=(self.lower, self.upper), loss="soft_l1",
+                             f_scale=0.1, x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
+
+
 def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, fit_eta=False, seed=0, spp=4,
         max_evaluations=60, progress=None):
     """Fit one translucent object's material so that ``scene``'s render matches ``target``; a :class:`FitResult`.
@@ -207,45 +324,23 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     progress : callable, optional
         ``progress(evaluation, cost)`` after each evaluation.
     """
-    from scipy.optimize import least_squares
-
     from .pipeline.integrator import ConvsssIntegrator, register
     from .pipeline.objects import find_translucent_objects
 
     mi = register()
     sensor = scene.sensors()[0]
-    target = np.asarray(target, dtype=np.float64)[..., :3]
     width, height = (int(n) for n in sensor.film().crop_size())
-    if target.shape[:2] != (height, width):
-        raise ConvsssError(f"the target is {target.shape[1]}x{target.shape[0]} pixels and the sensor's film "
-                           f"{width}x{height}: render the target at the film's size or resize the film")
-    if not np.all(np.isfinite(target)):
-        raise ConvsssError("the target holds NaN or infinite pixels: give a finite linear image")
+    target, mask = _checked_images(target, mask, width, height)
     named = scene.integrator()
     params = named.params.to_dict() if isinstance(named, ConvsssIntegrator) else {}
     integrator = mi.load_dict({"type": "convsss", **params})
-    found = {o.name: o for o in find_translucent_objects(mi, scene, integrator.params.unit_mm)}
-    every = list(found)
-    if object is None and len(every) > 1:
-        raise ConvsssError(f"the scene has {len(every)} translucent objects ({', '.join(every)}): name one to fit "
-                           "(--object)")
-    if object is not None and object not in every:
-        raise ConvsssError(f"no translucent object {object!r}: the scene has {', '.join(every)}")
-    if fit_eta and found[object or every[0]].boundary == "null":
-        raise ConvsssError(f"translucent object {object or every[0]!r} has a null (index-matched) boundary, whose eta "
-                           "is 1: fitting eta needs a dielectric or roughdielectric boundary")
-    if mask is not None:
-        mask = np.asarray(mask) != 0
-        if mask.shape != (height, width):
-            raise ConvsssError(f"the mask is {mask.shape[1]}x{mask.shape[0]} pixels and the film {width}x{height}")
-        if not mask.any():
-            raise ConvsssError("the mask holds no pixel: nothing to fit")
+    name = _object_to_fit(find_translucent_objects(mi, scene, integrator.params.unit_mm), object, fit_eta)
     forward = Forward(scene, integrator, sensor, 0, seed, spp)
     integrator.prepare(scene, sensor, seed)
     names = [o.name for o in integrator.prepared.objects]
-    if (object or every[0]) not in names:
-        raise ConvsssError(f"the camera does not see translucent object {object or every[0]!r}: nothing to fit")
-    forward.index = names.index(object or every[0])
+    if name not in names:
+        raise ConvsssError(f"the camera does not see translucent object {name!r}: nothing to fit")
+    forward.index = names.index(name)
     objects = integrator.prepared.objects
     inside = _object_mask(integrator, forward.index, (height, width)) if mask is None else mask
     base = objects[forward.index].material
@@ -253,82 +348,14 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     eta0 = float(np.clip(start.eta, *ETA_BOUNDS)) if fit_eta else base.eta
     albedo0 = np.clip(start.albedo_prime, *ALBEDO_BOUNDS)
     mfp0 = np.clip(start.mfp_mm, *MFP_BOUNDS_MM)
-    goal = target[inside]
-    floor = FLOOR * np.maximum(goal.mean(axis=0), 1e-12)
-    weight = 1.0 / (goal + floor)
-    history = []
+    problem = _Problem(forward, base, inside, target, fit_exposure, fit_eta, progress)
     begun = time.perf_counter()
-
-    def residual_of(image, scale):
-        return ((scale * image[inside] - goal) * weight)
-
-    variables = _Variables(base.eta)
-
-    # x: logit colour (3), log mfp (3), then log exposure and log(eta - 1) where fitted.
-    exposure_at, eta_at = 6, 6 + int(fit_exposure)
-
-    def split(x):
-        albedo, mfp = variables.decode(x)
-        scale = float(np.exp(x[exposure_at])) if fit_exposure else 1.0
-        return albedo, mfp, scale, (1.0 + float(np.exp(x[eta_at])) if fit_eta else base.eta)
-
-    cache = {}
-
-    def render(albedo, mfp, eta):
-        key = (tuple(albedo), tuple(mfp), eta)
-        if key not in cache:
-            cache.clear()
-            cache[key] = forward(material_of(albedo, mfp, eta, base.name))
-        return cache[key]
-
-    def residuals(x):
-        albedo, mfp, scale, eta = split(x)
-        r = residual_of(render(albedo, mfp, eta), scale)
-        history.append(float(0.5 * np.sum(r**2)))
-        if progress is not None:
-            progress(forward.evaluations, history[-1])
-        return r.ravel()
-
-    def jacobian(x):
-        albedo, mfp, scale, eta = split(x)
-        here = render(albedo, mfp, eta)[inside]
-        n = here.shape[0]
-        columns = np.zeros((n, 3, len(x)))
-
-        def moved(block, width):
-            x_moved = x.copy()
-            x_moved[block:block + width] += STEP
-            a, m, _, e = split(x_moved)
-            return (forward(material_of(a, m, e, base.name))[inside] - here) * scale * weight / STEP
-
-        for block in (0, 3):  # every channel's alpha' at once, then every channel's mfp: the channels are apart
-            derivative = moved(block, 3)
-            for c in range(3):
-                columns[:, c, block + c] = derivative[:, c]
-        if fit_exposure:
-            columns[:, :, exposure_at] = scale * here * weight
-        if fit_eta:  # one index for every channel: one more render
-            columns[:, :, eta_at] = moved(eta_at, 1)
-        return columns.reshape(n * 3, len(x))
-
-    mfp0 = _initial_mfp(forward, eta0, albedo0, mfp0, inside, goal, weight)
+    mfp0 = _initial_mfp(forward, eta0, albedo0, mfp0, inside, problem.goal, problem.weight)
     if fit_eta:
-        eta0 = _initial_eta(forward, eta0, albedo0, mfp0, inside, goal, weight)
-    x0 = variables.encode(albedo0, mfp0)
-    lower, upper = variables.bounds()
-    if fit_exposure:
-        x0, lower, upper = np.append(x0, 0.0), np.append(lower, -20.0), np.append(upper, 20.0)
-    if fit_eta:
-        x0 = np.append(x0, np.log(eta0 - 1.0))
-        lower, upper = np.append(lower, np.log(ETA_BOUNDS[0] - 1.0)), np.append(upper, np.log(ETA_BOUNDS[1] - 1.0))
-    # Tolerances: the variables (logit alpha', log mfp) to 1e-5, far below what the image's noise constrains.
-    def solve(x):
-        return least_squares(residuals, x, jac=jacobian, bounds=(lower, upper), loss="soft_l1", f_scale=0.1,
-                             x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
-
+        eta0 = _initial_eta(forward, eta0, albedo0, mfp0, inside, problem.goal, problem.weight)
     try:
-        solution = solve(x0)
-        albedo, mfp, scale, eta = split(solution.x)
+        solution = problem.solve(problem.start(albedo0, mfp0, eta0), max_evaluations)
+        albedo, mfp, scale, eta = problem.split(solution.x)
         planned = base.mfp_mm
         for _ in range(MAX_REPLANS):
             # The scene's material sized the samples (their spacing follows its profile) and drew the paths'
@@ -337,13 +364,14 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
                 break
             planned = mfp
             forward.replan(material_of(albedo, mfp, eta, base.name))
-            cache.clear()
-            solution = solve(solution.x)
-            albedo, mfp, scale, eta = split(solution.x)
-        image = render(albedo, mfp, eta)
+            problem.cache.clear()
+            solution = problem.solve(solution.x, max_evaluations)
+            albedo, mfp, scale, eta = problem.split(solution.x)
+        image = problem.render(albedo, mfp, eta)
     finally:
         if fit_eta:
             _set_boundary_eta(forward.obj.shape, base.eta)
+    variables, eta_at, history = problem.variables, problem.eta_at, problem.history
     std = _deviations(solution, variables, albedo, mfp)
     eta_std = float(std[2][eta_at] * (eta - 1.0)) if fit_eta else float("nan")
     return FitResult(material_of(albedo, mfp, eta, base.name), albedo, std[0], mfp, std[1], eta_std, scale,

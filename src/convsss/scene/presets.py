@@ -229,6 +229,16 @@ def named_medium(values):
     ('exact', 1.3, [2.0, 2.0, 2.0])
     """
     values = dict(values)
+    _check_properties(values)
+    unit_mm = _number(values.get("unit_mm", 1.0), "unit_mm")
+    if not np.isfinite(unit_mm) or unit_mm <= 0:
+        raise ConvsssError(f"convsss_medium: unit_mm={unit_mm!r} is not allowed: it must be finite and > 0 (mm per "
+                           "scene unit)")
+    return _preset_medium(values, unit_mm) if "preset" in values else _colour_medium(values, unit_mm)
+
+
+def _check_properties(values):
+    """One-line errors for properties the medium does not take: an unknown one, coefficients."""
     coefficients = [k for k in values if k in COEFFICIENTS]
     unknown = [k for k in values if k not in ("preset", "color", "mfp_mm", *OPTIONS, *COEFFICIENTS)]
     if unknown:
@@ -239,26 +249,30 @@ def named_medium(values):
         given = "a preset" if "preset" in values else "color + mfp_mm" if by_color else "no preset nor colour"
         raise ConvsssError(f"convsss_medium: {given} and coefficients ({', '.join(coefficients)}) given: the "
                            "medium takes a preset or color + mfp_mm; for coefficients use a 'homogeneous' medium")
-    unit_mm = _number(values.get("unit_mm", 1.0), "unit_mm")
-    if not np.isfinite(unit_mm) or unit_mm <= 0:
-        raise ConvsssError(f"convsss_medium: unit_mm={unit_mm!r} is not allowed: it must be finite and > 0 (mm per "
-                           "scene unit)")
-    if "preset" in values:
-        if by_color:
-            raise ConvsssError("convsss_medium: both a preset and color/mfp_mm given: give a preset, or color and "
-                               "mfp_mm")
-        extra = [k for k in ("eta", "model") if k in values]
-        if extra:
-            raise ConvsssError(f"convsss_medium: {extra[0]} goes with color and mfp_mm; a preset has its own "
-                               "coefficients and eta (`convsss materials` lists them)")
-        if not isinstance(values["preset"], str):
-            raise ConvsssError(f"convsss_medium: preset={values['preset']!r} is not allowed: give a name")
-        try:
-            found = preset_material(values["preset"], warn=False)
-        except ConvsssError as error:
-            raise ConvsssError(f"convsss_medium: {error}") from None
-        return NamedMedium(found, unit_mm, preset=found.name)
-    if not by_color:
+
+
+def _preset_medium(values, unit_mm):
+    """The medium of a ``preset`` (alone: a preset has its own coefficients and eta)."""
+    if "color" in values or "mfp_mm" in values:
+        raise ConvsssError("convsss_medium: both a preset and color/mfp_mm given: give a preset, or color and "
+                           "mfp_mm")
+    extra = [k for k in ("eta", "model") if k in values]
+    if extra:
+        raise ConvsssError(f"convsss_medium: {extra[0]} goes with color and mfp_mm; a preset has its own "
+                           "coefficients and eta (`convsss materials` lists them)")
+    if not isinstance(values["preset"], str):
+        raise ConvsssError(f"convsss_medium: preset={values['preset']!r} is not allowed: give a name")
+    try:
+        found = preset_material(values["preset"], warn=False)
+    except ConvsssError as error:
+        raise ConvsssError(f"convsss_medium: {error}") from None
+    return NamedMedium(found, unit_mm, preset=found.name)
+
+
+def _colour_medium(values, unit_mm):
+    """The medium of a ``color`` and ``mfp_mm`` (each a value or a texture on the shape; with ``eta`` and
+    ``model``), inverted into a material; a texture's mean stands for it here, its values per point at the load."""
+    if "color" not in values and "mfp_mm" not in values:
         raise ConvsssError("convsss_medium: nothing given: it needs a preset, or color and mfp_mm")
     if "color" not in values or "mfp_mm" not in values:
         raise ConvsssError(f"convsss_medium: {'color' if 'color' in values else 'mfp_mm'} without "
@@ -268,7 +282,7 @@ def named_medium(values):
         raise ConvsssError(f"convsss_medium: model={model!r} is not allowed: give a model's name")
     eta = _number(values.get("eta", DEFAULT_ETA), "eta")
     textures, given, lattices = {}, {}, []
-    for key in ("color", "mfp_mm"):  # a texture on the shape: its mean here, its values per point at the load
+    for key in ("color", "mfp_mm"):
         if hasattr(values[key], "class_name"):
             textures[key] = _texture(values[key], key)
             lattice = _lattice_values(textures[key])

@@ -142,22 +142,67 @@ def quick_scene(mesh, material, size_mm, width=WIDTH, height=HEIGHT, spp=SPP, fl
     if not math.isfinite(size_mm) or size_mm <= 0:
         raise ConvsssError(f"size_mm={size_mm!r} is not allowed: the object's size must be a length > 0 (mm)")
     shape = load_mesh(mesh)
+    to_world, half = _placement(mesh, shape, size_mm / unit_mm)
+    centre = np.array([0.0, half[1], 0.0])
+    radius = float(np.linalg.norm(half))
+    scene = {
+        "type": "scene",
+        "integrator": integrator or {"type": "volpathmis", "max_depth": -1, "rr_depth": 1 << 30},
+        "sensor": _sensor(centre, radius, width, height, spp),
+        "object": translucent({**mesh_dict(mesh), "to_world": _matrix(to_world)}, material, unit_mm, boundary),
+        **_lights(centre, radius),
+    }
+    if albedo_volume is not None and color_texture is not None:
+        raise ConvsssError("an albedo volume and a colour texture given: give one")
+    if albedo_volume is not None:
+        margin = VOLUME_MARGIN * 2 * float(np.max(half))
+        box = np.diag([*(2 * half + 2 * margin), 1.0])
+        box[:3, 3] = [-half[0] - margin, -margin, -half[2] - margin]
+        scene["object"]["interior"] = albedo_volume_dict(material, albedo_volume, _matrix(box), unit_mm)
+    if color_texture is not None:
+        if not shape.has_vertex_texcoords():
+            raise ConvsssError(f"mesh {str(mesh)!r} has no texture coordinates (uv): a colour texture needs them")
+        scene["object"]["interior"] = color_texture_medium(material, color_texture, material.mfp_mm, color_model,
+                                                           unit_mm)
+    if floor:
+        scene["floor"] = _floor(radius)
+    return scene
+
+
+def _placement(mesh, shape, size):
+    """The map that scales ``shape`` (of the file ``mesh``) to ``size`` scene units on its largest side, centred on
+    the y axis and standing on y = 0 (4x4), and the half extent (3,) of the placed object."""
     lo, hi = shape_bounds(shape)
     extent = float(np.max(hi - lo))
     if extent <= 0:
         raise ConvsssError(f"mesh {str(mesh)!r} is flat or empty: it has no extent")
-    s = size_mm / unit_mm / extent
+    s = size / extent
     centre_xz = 0.5 * (lo + hi)
     to_world = np.diag([s, s, s, 1.0])
     to_world[:3, 3] = [-s * centre_xz[0], -s * lo[1], -s * centre_xz[2]]
-    half = 0.5 * s * (hi - lo)
-    centre = np.array([0.0, half[1], 0.0])
-    radius = float(np.linalg.norm(half))
+    return to_world, 0.5 * s * (hi - lo)
+
+
+def _sensor(centre, radius, width, height, spp):
+    """The camera: 30° across the larger side, looking at ``centre`` from slightly above, the bounding sphere of
+    ``radius`` filling about 80 % of the frame."""
     aspect = width / height
     half_fov = math.radians(FOV_DEG) / 2 if aspect >= 1 else math.atan(math.tan(math.radians(FOV_DEG) / 2) / aspect)
     distance = radius / math.sin(half_fov) / 0.8
     view = np.array([0.0, 0.25, 1.0]) / np.linalg.norm([0.0, 0.25, 1.0])
     camera = centre + distance * view
+    return {
+        "type": "perspective", "fov": FOV_DEG, "fov_axis": "larger",
+        "near_clip": 0.01 * distance, "far_clip": 100.0 * distance,
+        "to_world": _look_at(camera, centre),
+        "film": {"type": "hdrfilm", "width": int(width), "height": int(height), "rfilter": {"type": "gaussian"}},
+        "sampler": {"type": "independent", "sample_count": int(spp)},
+    }
+
+
+def _lights(centre, radius):
+    """The key light high on the camera's left (irradiance about 1 at the object) and the back light behind it,
+    about 3 times stronger."""
     key = centre + radius * np.array([-2.5, 3.0, 2.5])
     back = centre + radius * np.array([0.8, 1.0, -3.0])
 
@@ -165,37 +210,15 @@ def quick_scene(mesh, material, size_mm, width=WIDTH, height=HEIGHT, spp=SPP, fl
         value = float(irradiance * np.sum((position - centre) ** 2))
         return {"type": "rgb", "value": [value, value, value]}
 
-    scene = {
-        "type": "scene",
-        "integrator": integrator or {"type": "volpathmis", "max_depth": -1, "rr_depth": 1 << 30},
-        "sensor": {
-            "type": "perspective", "fov": FOV_DEG, "fov_axis": "larger",
-            "near_clip": 0.01 * distance, "far_clip": 100.0 * distance,
-            "to_world": _look_at(camera, centre),
-            "film": {"type": "hdrfilm", "width": int(width), "height": int(height), "rfilter": {"type": "gaussian"}},
-            "sampler": {"type": "independent", "sample_count": int(spp)},
-        },
-        "object": translucent({**mesh_dict(mesh), "to_world": _matrix(to_world)}, material, unit_mm, boundary),
-        "key_light": {"type": "point", "position": key.tolist(), "intensity": intensity(key, 1.0)},
-        "back_light": {"type": "point", "position": back.tolist(), "intensity": intensity(back, 3.0)},
+    return {"key_light": {"type": "point", "position": key.tolist(), "intensity": intensity(key, 1.0)},
+            "back_light": {"type": "point", "position": back.tolist(), "intensity": intensity(back, 3.0)}}
+
+
+def _floor(radius):
+    """A large grey diffuse floor at y = 0."""
+    return {
+        "type": "rectangle",
+        "to_world": _matrix(np.array([[20 * radius, 0, 0, 0], [0, 0, 20 * radius, 0],
+                                      [0, -20 * radius, 0, 0], [0, 0, 0, 1.0]])),
+        "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}},
     }
-    if albedo_volume is not None:
-        margin = VOLUME_MARGIN * 2 * float(np.max(half))
-        box = np.diag([*(2 * half + 2 * margin), 1.0])
-        box[:3, 3] = [-half[0] - margin, -margin, -half[2] - margin]
-        scene["object"]["interior"] = albedo_volume_dict(material, albedo_volume, _matrix(box), unit_mm)
-    if color_texture is not None:
-        if albedo_volume is not None:
-            raise ConvsssError("an albedo volume and a colour texture given: give one")
-        if not shape.has_vertex_texcoords():
-            raise ConvsssError(f"mesh {str(mesh)!r} has no texture coordinates (uv): a colour texture needs them")
-        scene["object"]["interior"] = color_texture_medium(material, color_texture, material.mfp_mm, color_model,
-                                                           unit_mm)
-    if floor:
-        scene["floor"] = {
-            "type": "rectangle",
-            "to_world": _matrix(np.array([[20 * radius, 0, 0, 0], [0, 0, 20 * radius, 0],
-                                          [0, -20 * radius, 0, 0], [0, 0, 0, 1.0]])),
-            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}},
-        }
-    return scene
