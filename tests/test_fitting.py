@@ -106,11 +106,14 @@ def scene_file(tmp_path):
     ("object", "no translucent object 'nothing'"),
     ("mask", "the mask holds no pixel"),
     ("eta", "has a null (index-matched) boundary, whose eta is 1"),
+    ("negative", "the target holds negative pixels"),
 ])
 def test_bad_input_is_refused_in_one_line_before_any_render(scene_file, tmp_path, case, message):
     target = np.full((16, 16, 3) if case == "size" else (24, 24, 3), 0.5)
     if case == "nan":
         target[3, 4, 1] = np.nan
+    if case == "negative":
+        target[5, 6, 2] = -0.25
     write_exr(tmp_path / "t.exr", target)
     args = ["fit", str(scene_file), str(tmp_path / "t.exr"), "-o", str(tmp_path / "out" / "fitted"), "--no-progress"]
     if case == "object":
@@ -159,3 +162,24 @@ def test_the_forward_model_moves_smoothly_with_the_mean_free_path(mi):
     forward = Forward(scene, integrator, sensor, 0, 0, 4)
     a, b, c = (forward(material_of(skin.albedo_prime, skin.mfp_mm * (1 + 1e-3 * k), 1.4)) for k in range(3))
     assert np.abs(c - 2 * b + a).sum() < 0.02 * np.abs(b - a).sum()
+
+
+@pytest.mark.parametrize("case, message", [
+    ("black", "the target is black where the camera sees"),
+    ("mask", "the mask holds none of the pixels where the camera sees"),
+])
+def test_a_target_without_light_or_a_mask_off_the_object_is_refused_before_fitting(scene_file, tmp_path, case,
+                                                                                     message):
+    """A black target (a fit would find a clear absorber and call it a success) and a mask that misses the object
+    (a fit of nothing, loss 0): one line, exit 2, after the one render that finds the object's pixels."""
+    target = np.zeros((24, 24, 3)) if case == "black" else np.full((24, 24, 3), 0.5)
+    write_exr(tmp_path / "t.exr", target)
+    args = ["fit", str(scene_file), str(tmp_path / "t.exr"), "-o", str(tmp_path / "out" / "fitted"), "--no-progress"]
+    if case == "mask":
+        corner = np.zeros((24, 24, 3))
+        corner[0, 0] = 1.0  # the corner of the frame, off the bunny
+        write_exr(tmp_path / "m.exr", corner)
+        args += ["--mask", str(tmp_path / "m.exr")]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2 and message in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "out").exists()

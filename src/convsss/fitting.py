@@ -187,6 +187,10 @@ def _checked_images(target, mask, width, height):
                            f"{width}x{height}: render the target at the film's size or resize the film")
     if not np.all(np.isfinite(target)):
         raise ConvsssError("the target holds NaN or infinite pixels: give a finite linear image")
+    if np.any(target < 0):
+        y, x, c = np.argwhere(target < 0)[0]
+        raise ConvsssError(f"the target holds negative pixels (e.g. {'RGB'[c]} = {target[y, x, c]:.3g} at x={x}, "
+                           f"y={y}): give a linear image of light, every value >= 0")
     if mask is not None:
         mask = np.asarray(mask) != 0
         if mask.shape != (height, width):
@@ -320,7 +324,9 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     seed, spp : int
         The renders' seed and samples per pixel (the same for every evaluation).
     max_evaluations : int
-        Renders at most (about two per iteration, and one per Jacobian column pair).
+        Evaluations of the least squares at most, each one render, per solve; each Jacobian adds one render per
+        block of variables (the albedos, the mean free paths, eta), and a fit that replans solves again (at most
+        :data:`MAX_REPLANS` times), so the renders can exceed it (:attr:`FitResult.evaluations` counts them).
     progress : callable, optional
         ``progress(evaluation, cost)`` after each evaluation.
     """
@@ -342,7 +348,13 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
         raise ConvsssError(f"the camera does not see translucent object {name!r}: nothing to fit")
     forward.index = names.index(name)
     objects = integrator.prepared.objects
-    inside = _object_mask(integrator, forward.index, (height, width)) if mask is None else mask
+    seen = _object_mask(integrator, forward.index, (height, width))
+    if mask is not None and not (mask & seen).any():
+        raise ConvsssError(f"the mask holds none of the pixels where the camera sees {name!r}: nothing to fit")
+    inside = seen if mask is None else mask
+    if not np.any(target[inside] > 0):
+        raise ConvsssError(f"the target is black where the camera sees {name!r}: nothing to fit (is it a linear "
+                           "render of this scene?)")
     base = objects[forward.index].material
     start = base if start is None else start
     eta0 = float(np.clip(start.eta, *ETA_BOUNDS)) if fit_eta else base.eta

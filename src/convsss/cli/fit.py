@@ -35,7 +35,9 @@ from .options import PROGRESS, output_paths
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="The renders' seed (the same for every evaluation, so the fit sees no noise between them).")
 @click.option("--max-evaluations", type=click.IntRange(4), default=80, show_default=True,
-              help="Renders at most.")
+              help="Evaluations of the least squares at most, each a render; each Jacobian adds a render per block of "
+                   "variables and a fit that replans solves again, so the renders can exceed it (the JSON's "
+                   "evaluations counts them).")
 @click.option("--check", is_flag=True,
               help="Also write OUT-check.png: the fitted render beside the target, tone-mapped alike.")
 @PROGRESS
