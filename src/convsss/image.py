@@ -8,7 +8,8 @@ Tone mapping (for display only; EXRs stay linear):
 - ``exposure``: ``rgb * 2^exposure``, clipped;
 - ``none``: clipped as is.
 
-Then sRGB encoding and 8 bits. The key must be finite and positive, the exposure finite (:func:`check_tonemap`).
+Then sRGB encoding and 8 bits. The key must be finite and positive, the exposure finite and within
+:data:`MAX_STOPS` (:func:`check_tonemap`).
 """
 
 import math
@@ -20,6 +21,8 @@ from .errors import ConvsssError
 from .files import atomic_write
 
 TONEMAPS = ("reinhard", "exposure", "none")
+#: The largest exposure either way, in stops (2^100: far past any image's range, short of float overflow).
+MAX_STOPS = 100
 _LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
@@ -67,8 +70,9 @@ def check_tonemap(method="reinhard", key=0.18, exposure=0.0):
         raise ConvsssError(f"unknown tone mapping {method!r}: choose one of {', '.join(TONEMAPS)}")
     if not (math.isfinite(key) and key > 0):
         raise ConvsssError(f"key={key!r} is not allowed: the tone mapping's key must be finite and > 0")
-    if not math.isfinite(exposure):
-        raise ConvsssError(f"exposure={exposure!r} is not allowed: the exposure (stops) must be finite")
+    if not math.isfinite(exposure) or abs(exposure) > MAX_STOPS:
+        raise ConvsssError(f"exposure={exposure!r} is not allowed: the exposure must be finite, at most {MAX_STOPS} "
+                           "stops either way")
 
 
 def tonemap(rgb, method="reinhard", key=0.18, exposure=0.0, mask=None, anchor=None):

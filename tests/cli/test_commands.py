@@ -402,6 +402,8 @@ def test_read_only_output_folder_fails_before_the_render(studio):
     (("--seed", "1e23"), "Invalid value for '--seed'"),
     (("--seed", 2**32), "Invalid value for '--seed'"),
     (("--exposure", "nan"), "exposure=nan is not allowed"),
+    (("--exposure", "1e9"), "exposure=1000000000.0 is not allowed"),
+    (("--accuracy", "1e-300"), "accuracy"),
     (("--key", 0), "key=0.0 is not allowed"),
     (("--key", -1), "key=-1.0 is not allowed"),
     (("--exposure-from", "nope.exr"), "image 'nope.exr' does not exist"),

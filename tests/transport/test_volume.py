@@ -224,3 +224,16 @@ def test_no_samples_or_no_resolved_channel_is_eq1():
     points = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, -2.0]])
     np.testing.assert_array_equal(coarse.exitance(points),
                                   make_transport("multiscale", slab, skin, FRAME).exitance(points))
+
+
+def test_a_spacing_far_too_fine_is_refused_in_one_line_by_the_plan():
+    """The plan asks the grid's size before any work: a spacing of 1e-300 mm (its node count overflows any integer)
+    is one line, not an overflow or a reshape error."""
+    from convsss.transport.volume import VolumeTransport
+
+    skin = model_profile("dipole", material("skin1"))
+    bounds = np.array([[0.0, 0.0, 0.0], [10.0, 10.0, 10.0]])
+    assert VolumeTransport.planned_bytes(bounds, skin, 1000, {"spacing": 0.5}, material("skin1")) > 0
+    with pytest.raises(ConvsssError, match="would hold .* nodes") as info:
+        VolumeTransport.planned_bytes(bounds, skin, 1000, {"spacing": 1e-300}, material("skin1"))
+    assert "\n" not in str(info.value)

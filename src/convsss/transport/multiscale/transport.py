@@ -22,8 +22,8 @@ class MultiscaleTransport(Transport):
     name = "multiscale"
     parameters = (
         Parameter("accuracy", float, 0.01, "Relative error aimed at by the multiscale transport: sets its cluster "
-                  "and voxel sizes, split radii and far-field mesh from the profile's core width.", low=0.0,
-                  low_open=True, high=0.5),
+                  "and voxel sizes, split radii and far-field mesh from the profile's core width.", low=1e-6,
+                  high=0.5),
         Parameter("cell_size", float, None, "The pixel footprint in mm where the object is seen (the renderer "
                   "sets it): the profile's features narrower than a third of it are summed as their energy over a "
                   "smooth kernel (the local limit), so that the work follows the image.", low=0.0, low_open=True,

@@ -18,6 +18,8 @@ from .grid import BYTES_PER_NODE, Surface, assemble, deposit, gather, grid_shape
 from .medium import RESOLVED_LENGTH, auto_spacing, coefficients
 from .response import half_space_response
 
+#: Grid nodes beyond which a spacing is refused outright (long before, the memory guard refuses what does not fit).
+MAX_NODES = 1e12
 #: The half-space response's reach: the radius holding all but this fraction of the profile's energy.
 RESPONSE_TAIL = 1e-4
 
@@ -51,7 +53,7 @@ class VolumeTransport(Transport):
     sums_eq1 = False
     parameters = (
         Parameter("accuracy", float, 0.01, "Relative error aimed at by the sums of Eq. 1 (as the multiscale "
-                  "transport's accuracy).", low=0.0, low_open=True, high=0.5),
+                  "transport's accuracy).", low=1e-6, high=0.5),
         Parameter("spacing", float, 0.0, "Grid spacing of the diffusion solve in mm; 0 sets it from the material "
                   "and the object (half the shortest diffusion length, 1/64 to 1/24 of the object's extent).",
                   low=0.0),
@@ -73,7 +75,13 @@ class VolumeTransport(Transport):
         _model_of(profile)
         lo, hi = np.asarray(bounds, dtype=np.float64)
         h = cls.spacing_for(bounds, material, params)
-        _, shape = grid_shape(lo, hi, h, float(np.max(coefficients(profile, material, h).z_b)) + 2 * h)
+        pad = float(np.max(coefficients(profile, material, h).z_b)) + 2 * h
+        with np.errstate(over="ignore"):  # a float: no integer overflows first, and inf is refused below
+            nodes = float(np.prod(np.floor((hi - lo + 2 * pad) / h) + 2))
+        if not nodes <= MAX_NODES:
+            raise ConvsssError(f"the volume transport's grid at spacing {h:.3g} mm would hold {nodes:.3g} nodes, "
+                               f"more than {MAX_NODES:.0e}: give a coarser spacing (0: set from the material)")
+        _, shape = grid_shape(lo, hi, h, pad)
         sums = MultiscaleTransport.planned_bytes(bounds, profile, count, {"accuracy": params.get("accuracy", 0.01)})
         return int(BYTES_PER_NODE * math.prod(shape) + 2 * sums)
 
