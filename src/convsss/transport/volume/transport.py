@@ -75,13 +75,12 @@ class VolumeTransport(Transport):
         _model_of(profile)
         lo, hi = np.asarray(bounds, dtype=np.float64)
         h = cls.spacing_for(bounds, material, params)
-        pad = float(np.max(coefficients(profile, material, h).z_b)) + 2 * h
-        with np.errstate(over="ignore"):  # a float: no integer overflows first, and inf is refused below
-            nodes = float(np.prod(np.floor((hi - lo + 2 * pad) / h) + 2))
+        with np.errstate(over="ignore"):  # the unpadded grid's nodes, a float: no integer overflows, inf is refused
+            nodes = float(np.prod(np.floor((hi - lo) / h) + 2))
         if not nodes <= MAX_NODES:
             raise ConvsssError(f"the volume transport's grid at spacing {h:.3g} mm would hold {nodes:.3g} nodes, "
                                f"more than {MAX_NODES:.0e}: give a coarser spacing (0: set from the material)")
-        _, shape = grid_shape(lo, hi, h, pad)
+        _, shape = grid_shape(lo, hi, h, float(np.max(coefficients(profile, material, h).z_b)) + 2 * h)
         sums = MultiscaleTransport.planned_bytes(bounds, profile, count, {"accuracy": params.get("accuracy", 0.01)})
         return int(BYTES_PER_NODE * math.prod(shape) + 2 * sums)
 
