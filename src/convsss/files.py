@@ -18,6 +18,18 @@ import numpy as np
 from .errors import ConvsssError
 
 
+def output_paths(output, *endings):
+    """The files ``OUT + ending`` for ``OUT``, ``OUT.exr`` or ``OUT.png``, the stem every output shares (any other
+    dot in the name is kept: ``-o sphere-0.5`` writes ``sphere-0.5.exr``).
+
+    >>> [str(p) for p in output_paths("out/sphere-0.5.png", ".exr", "-mask.png")]
+    ['out/sphere-0.5.exr', 'out/sphere-0.5-mask.png']
+    """
+    path = Path(output)
+    stem = path.with_suffix("") if path.suffix.lower() in (".exr", ".png") else path
+    return [stem.with_name(stem.name + ending) for ending in endings]
+
+
 def check_outputs(outputs, inputs=()):
     """Refuse, before any work, output paths that cannot or must not be written.
 

@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from convsss.batch import batch_from_spec, contact_sheet, run_batch, run_job, turntables
-from convsss.batch.spec import arguments
+from convsss.batch.spec import keywords
 from convsss.cli import cli
 from convsss.image import read_image
 
@@ -33,7 +33,7 @@ def test_a_sweep_renders_the_single_renders_and_a_second_run_skips_them(tmp_path
     assert [records[j.id]["status"] for j in batch.jobs] == ["done"] * 4
     assert len({records[j.id]["worker_pid"] for j in batch.jobs}) == 2  # both workers rendered
     for job in batch.jobs:  # the same command in this process: the same image, bit for bit
-        single = run_job(batch.command, job.id, arguments(batch.command, job.options), tmp_path / "single" / job.id)
+        single = run_job(batch.command, job.id, keywords(batch.command, job.options), tmp_path / "single" / job.id)
         assert np.array_equal(read_image(single["outputs"]["exr"]), read_image(records[job.id]["outputs"]["exr"]))
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert [row["status"] for row in manifest["jobs"]] == ["done"] * 4
@@ -44,7 +44,7 @@ def test_a_sweep_renders_the_single_renders_and_a_second_run_skips_them(tmp_path
     assert contact_sheet(batch, again, tmp_path / "out" / "sheet.png").stat().st_size > 0
 
 
-def _dies_once_then_runs(command, job_id, args, folder):
+def _dies_once_then_runs(command, job_id, keywords, folder):
     """A job whose first worker dies mid-job (as one killed or out of memory would)."""
     marker = Path(folder).parent / f"{job_id}.died"
     if job_id.startswith("0000") and not marker.exists():
@@ -53,7 +53,7 @@ def _dies_once_then_runs(command, job_id, args, folder):
         os._exit(1)
     if job_id.startswith("0001"):
         raise ValueError("this job's scene is bad")
-    return run_job(command, job_id, args, folder)
+    return run_job(command, job_id, keywords, folder)
 
 
 @pytest.mark.slow

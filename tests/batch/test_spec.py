@@ -2,7 +2,8 @@
 
 import pytest
 
-from convsss.batch.spec import SpecError, arguments, batch_from_spec, read_spec
+from convsss.batch.spec import SpecError, arguments, batch_from_spec, keywords, read_spec
+from convsss.scene.source import SceneSource
 
 BASE = {"mesh": "bunny", "size_mm": 20, "width": 32, "height": 32, "spp": 1}
 
@@ -18,6 +19,18 @@ def test_the_product_of_the_axes_is_the_jobs_with_stable_ids():
     assert batch.jobs[0].options == {**BASE, "material": "wholemilk", "seed": 1}
     args = arguments("render", batch.jobs[0].options)
     assert args[:2] == ["--mesh", "bunny"] and args[-4:] == ["--material", "wholemilk", "--seed", "1"]
+
+
+def test_a_jobs_options_are_the_library_functions_keywords_converted_as_the_command_converts_them():
+    job = batch_from_spec({"scene": {**BASE, "floor": True, "write_mask": True, "spp": "3", "accuracy": "0.02"},
+                           "axes": {"material": ["marble"]}}).jobs[0]
+    call = keywords("render", job.options)
+    assert call["source"] == SceneSource(mesh="bunny", material="marble", size_mm=20.0, floor=True, width=32,
+                                         height=32)
+    assert call["spp"] == 3 and call["mask"] is True and call["accuracy"] == 0.02 and call["seed"] == 0
+    assert "output" not in call and "progress" not in call and "stats_path" not in call
+    listed = batch_from_spec({"command": "reference", "scene": {**BASE, "material": "marble", "pass_spp": 2}})
+    assert keywords("reference", listed.jobs[0].options)["pass_spp"] == 2
 
 
 def test_a_table_value_sets_several_options_and_flags_and_listed_jobs():

@@ -1,6 +1,7 @@
 """The batch runner: every job of a :class:`~.spec.Batch` on Dask distributed, with a manifest kept current.
 
-Each job is one ``convsss render`` (or ``reference``) in a Dask worker process, with its own folder
+Each job is one :func:`~convsss.outputs.render_to_files` (or ``reference_to_files``), what ``convsss render`` (or
+``reference``) runs, in a Dask worker process, with its own folder
 ``OUT/jobs/ID/`` (``image.exr``, ``image.png``, with ``render`` ``stats.json``) and, written last, ``job.json``: what
 says the job is complete (a second run skips it). A worker that dies (killed, out of memory) has its job run again
 elsewhere, up to ``retries`` times (Dask's ``allowed-failures``); a job that fails (bad input found by the command)
@@ -21,7 +22,7 @@ from pathlib import Path
 
 from ..errors import ConvsssError
 from ..files import atomic_write
-from .spec import arguments
+from .spec import keywords
 
 #: A job's complete marker, written last in its folder.
 DONE = "job.json"
@@ -31,29 +32,27 @@ def job_folder(out, job):
     return Path(out) / "jobs" / job.id
 
 
-def run_job(command, job_id, args, folder):
-    """Run one job in this process: ``convsss COMMAND ARGS -o FOLDER/image`` (with ``--stats`` for ``render``);
-    returns its record (``seconds``: the command's stages and ``total``; ``outputs``), also written to
-    ``FOLDER/job.json``. Bad input raises the command's :class:`ConvsssError`."""
-    from ..cli.main import cli
+def run_job(command, job_id, keywords, folder):
+    """Run one job in this process: :func:`~convsss.outputs.render_to_files` (``command`` ``render``, with its stats)
+    or :func:`~convsss.outputs.reference_to_files` of ``keywords`` (:func:`~.spec.keywords`) to ``FOLDER/image``;
+    returns its record (``seconds``: the render's stages and ``total``; ``outputs``), also written to
+    ``FOLDER/job.json``. Bad input raises the function's :class:`ConvsssError`."""
     from ..memory import set_budget
+    from ..outputs import reference_to_files, render_to_files
 
     set_budget(_worker_memory())  # a job that would not fit its worker's share is refused, not killed
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    stem = folder / "image"
-    extra = ["--stats", str(folder / "stats.json")] if command == "render" else []
     start = time.perf_counter()
-    with contextlib.redirect_stdout(io.StringIO()):  # its "wrote ..." line: the manifest says it
-        cli.get_command(None, command).main(args=[*args, "-o", str(stem), *extra, "--no-progress"],
-                                            prog_name=f"convsss {command}", standalone_mode=False)
-    seconds = {}
     if command == "render":
-        seconds.update(json.loads((folder / "stats.json").read_text()).get("seconds", {}))
+        stats = render_to_files(**keywords, output=folder / "image", stats_path=folder / "stats.json")
+        seconds = dict(stats["seconds"])
+    else:
+        stats = reference_to_files(**keywords, output=folder / "image")
+        seconds = {}
     seconds["total"] = time.perf_counter() - start
-    record = {"id": job_id, "status": "done", "seconds": seconds, "worker_pid": os.getpid(),
-              "outputs": {"exr": str(stem.with_suffix(".exr")), "png": str(stem.with_suffix(".png")),
-                          **({"stats": str(folder / "stats.json")} if command == "render" else {})}}
+    outputs = {k: v for k, v in stats["outputs"].items() if k in ("exr", "png", "stats")}
+    record = {"id": job_id, "status": "done", "seconds": seconds, "worker_pid": os.getpid(), "outputs": outputs}
     atomic_write(folder / DONE, lambda tmp: Path(tmp).write_text(json.dumps(record, indent=1)))
     return record
 
@@ -162,7 +161,7 @@ def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=
               progress=True):
     """Run ``batch``'s jobs that ``out`` does not hold complete yet; returns ``{job id: record}``.
 
-    ``job_function(command, job_id, args, folder)`` runs one job in a worker (:func:`run_job`; a test may give its
+    ``job_function(command, job_id, keywords, folder)`` runs one job in a worker (:func:`run_job`; a test may give its
     own). Ctrl-C cancels what is left and writes the manifest of what finished before it re-raises."""
     out = Path(out).resolve()  # the workers' own working folder is not ours
     out.mkdir(parents=True, exist_ok=True)
@@ -200,7 +199,7 @@ def _run_jobs(client, batch, todo, out, records, retries, job_function, echo, pr
             echo(f"batch: {len(todo)} jobs ({len(batch.jobs) - len(todo)} complete already); Dask dashboard "
                  f"{client.dashboard_link}")
         for job in todo:
-            future = client.submit(job_function, batch.command, job.id, arguments(batch.command, job.options),
+            future = client.submit(job_function, batch.command, job.id, keywords(batch.command, job.options),
                                    str(job_folder(out, job)), key=f"convsss-{job.id}-{time.time_ns()}", pure=False)
             futures[future] = job
             records[job.id] = {"status": "queued"}

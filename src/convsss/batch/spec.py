@@ -224,6 +224,19 @@ def arguments(command, options):
     return args
 
 
+def keywords(command, options):
+    """A job's ``options`` as the keyword arguments of the library function its command calls
+    (:func:`~convsss.outputs.render_to_files` or :func:`~convsss.outputs.reference_to_files`, ``source`` a
+    :class:`~convsss.scene.source.SceneSource`), each value converted and checked as the command's option would be."""
+    from ..scene.source import FIELDS, SceneSource
+
+    params = _command(command).make_context(command, [*arguments(command, options), "-o", "x"]).params
+    keywords = {k: v for k, v in params.items() if k not in (*FIELDS, *RESERVED)}
+    if "write_mask" in keywords:
+        keywords["mask"] = keywords.pop("write_mask")
+    return {"source": SceneSource(**{k: params[k] for k in FIELDS}), **keywords}
+
+
 def check_job(command, job):
     """What ``command`` would refuse in ``job``'s options (one line each): values its options reject, a scene
     file that does not exist, a mesh or a material that is not there. Nothing is loaded or rendered."""

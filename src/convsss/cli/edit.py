@@ -6,7 +6,7 @@ import dataclasses
 import click
 
 from .main import cli
-from .options import integrator_options, pick_sensor, render_params, scene_source_options
+from .options import integrator_options, scene_source_options
 
 
 @cli.command()
@@ -32,12 +32,15 @@ def edit(source, spp, sensor, seed, target, port, open_browser, **integrator):
       convsss edit scene.xml --object bunny --port 8123
       convsss edit --mesh bunny --material wholemilk --size-mm 40 --floor --width 512 --height 512
     """
+    from ..pipeline.params import render_params
+
     quick = source.quick
     defaults = {"specular": "phong"} if quick else {}
     render_params(integrator, defaults)  # bad values fail before anything is loaded
     from ..backend import load_mitsuba
     from ..editor import EditSession
     from ..editor.server import EditorServer
+    from ..outputs import pick_sensor
     from ..pipeline.integrator import scene_parameters
 
     load_mitsuba()

@@ -6,8 +6,9 @@ from pathlib import Path
 import click
 import numpy as np
 
+from ..files import output_paths
 from .main import cli
-from .options import PROGRESS, output_paths
+from .options import PROGRESS
 
 
 @cli.command()

@@ -5,8 +5,6 @@ so that help, defaults and checks are stated once.
 """
 
 import functools
-import warnings
-from pathlib import Path
 
 import click
 
@@ -30,18 +28,6 @@ def _decorate(func, options):
     for option in reversed(options):
         func = option(func)
     return func
-
-
-def output_paths(output, *endings):
-    """The files ``OUT + ending`` for ``OUT``, ``OUT.exr`` or ``OUT.png``, the stem every output shares (any other
-    dot in the name is kept: ``-o sphere-0.5`` writes ``sphere-0.5.exr``).
-
-    >>> [str(p) for p in output_paths("out/sphere-0.5.png", ".exr", "-mask.png")]
-    ['out/sphere-0.5.exr', 'out/sphere-0.5-mask.png']
-    """
-    path = Path(output)
-    stem = path.with_suffix("") if path.suffix.lower() in (".exr", ".png") else path
-    return [stem.with_name(stem.name + ending) for ending in endings]
 
 
 MODEL_NAMES = ("dipole", "better-dipole", "pbd", "burley")
@@ -88,21 +74,6 @@ def color_options(func):
         COLOR_MODEL,
     ]
     return _decorate(func, options)
-
-
-def warn_color_model(color_model, profile, total):
-    """Warn (:class:`~convsss.scene.presets.ColorModelWarning`) when the quick scene's object (``object``), made from
-    ``--color`` under ``color_model``, renders with another total (the integrator's ``profile`` and
-    ``profile_total``, :func:`~convsss.profiles.models.rendered_total_of`)."""
-    from ..profiles.models import DEFAULT_COLOR_MODEL, parse_profile_spec, rendered_total_of
-    from ..scene.presets import ColorModelWarning
-
-    default, per_object = parse_profile_spec(profile)
-    spec, model = per_object.get("object", default), color_model or DEFAULT_COLOR_MODEL
-    rendered = rendered_total_of(spec, total)
-    if rendered is not None and rendered != model:
-        warnings.warn(f"--color is the {model} total reflectance but the object renders with the {rendered} total: "
-                      f"give --color-model {rendered} to match the colour", ColorModelWarning, stacklevel=2)
 
 
 def scene_source_options(func=None, *, preview=False):
@@ -153,21 +124,6 @@ def scene_source_options(func=None, *, preview=False):
     return _decorate(collected, options)
 
 
-def pick_sensor(scene, sensor):
-    """The scene's sensor number ``sensor`` (None: the first, with a note when there are others), or a one-line
-    error."""
-    sensors = scene.sensors()
-    if sensor is None:
-        if len(sensors) > 1:
-            click.echo(f"note: the scene has {len(sensors)} sensors; rendering sensor 0 (--sensor picks another)",
-                       err=True)
-        return sensors[0]
-    if sensor >= len(sensors):
-        raise ConvsssError(f"--sensor {sensor} is not allowed: the scene has {len(sensors)} sensor(s), 0 to "
-                           f"{len(sensors) - 1}")
-    return sensors[sensor]
-
-
 def _check_tonemap_option(ctx, param, value):
     check_tonemap(**{param.name: value})
     return value
@@ -175,7 +131,7 @@ def _check_tonemap_option(ctx, param, value):
 
 def tonemap_options(func):
     """``--tonemap``, ``--key``, ``--exposure`` and ``--exposure-from`` for the PNG (shared by commands); bad values
-    fail at once (``--exposure-from`` with :func:`exposure_anchor`)."""
+    fail at once (``--exposure-from`` with :func:`~convsss.outputs.exposure_anchor`)."""
     options = [
         click.option("--tonemap", type=click.Choice(TONEMAPS), default="reinhard", show_default=True,
                      help="PNG tone mapping: Reinhard's photographic operator, exposure only, or none (clipped)."),
@@ -188,18 +144,6 @@ def tonemap_options(func):
                           "image: a render and its reference exposed alike."),
     ]
     return _decorate(func, options)
-
-
-def exposure_anchor(exposure_from, tonemap):
-    """The image ``--exposure-from`` names (linear RGB), or None; one-line errors for a missing file or a tone
-    mapping it cannot key."""
-    if exposure_from is None:
-        return None
-    if tonemap != "reinhard":
-        raise ConvsssError(f"--exposure-from keys the Reinhard operator: it needs --tonemap reinhard, not {tonemap}")
-    from ..image import read_image
-
-    return read_image(exposure_from)
 
 
 class DeclaredType(click.ParamType):
@@ -239,14 +183,3 @@ def integrator_options(func):
         kind = click.Choice(p.choices) if p.kind is str and p.choices else DeclaredType(p)
         func = click.option(f"--{p.name.replace('_', '-')}", p.name, type=kind, help=help_text)(func)
     return func
-
-
-def render_params(options, base=None):
-    """:class:`RenderParams` from the command's options (only those given) over ``base`` (a dict)."""
-    from ..pipeline.params import RenderParams
-
-    values = dict(base or {})
-    values.update({name: value for name, value in options.items() if value is not None})
-    return RenderParams(**values)
-
-

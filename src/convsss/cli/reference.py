@@ -1,23 +1,12 @@
 """``convsss reference``: the same scene with Mitsuba's ``volpathmis`` (ground truth), in passes that are each saved."""
 
-import json
 import sys
 import time
-import warnings
 
 import click
 
-from ..files import check_outputs, text_writer, write_files
-from ..scene.quick import SPP
 from .main import cli
-from .options import (
-    PROGRESS,
-    exposure_anchor,
-    output_paths,
-    pick_sensor,
-    scene_source_options,
-    tonemap_options,
-)
+from .options import PROGRESS, scene_source_options, tonemap_options
 
 
 @cli.command()
@@ -47,44 +36,34 @@ def reference(source, spp, sensor, seed, output, pass_spp, strict, tonemap, key,
     """
     from tqdm import tqdm
 
-    from ..image import exr_writer, png_writer
-    from ..pipeline.reference import BlackPassWarning, render_reference
+    from ..outputs import reference_to_files
+    from ..pipeline.reference import BlackPassWarning
 
     start = time.perf_counter()
-    exr, png, info = output_paths(output, ".exr", ".png", ".json")
-    check_outputs([exr, png, info], [*source.inputs(), *([exposure_from] if exposure_from else [])])
-    anchor = exposure_anchor(exposure_from, tonemap)
-    scene = source.load()
-    camera = pick_sensor(scene, sensor)
-    total_spp = spp if spp is not None else (SPP if source.quick else camera.sampler().sample_count())
     lines = progress and not sys.stderr.isatty()  # a log: one line a pass, no carriage returns
-    bar = tqdm(total=total_spp, desc="volpathmis", unit="spp", disable=not progress or lines)
-    if lines:
-        click.echo(f"volpathmis: {total_spp} spp in passes of {pass_spp}", err=True)
+    bar = None
 
-    def save(image, done, index, n_passes):
-        text = json.dumps({
-            "command": "reference", "scene": None if source.quick else str(source.scene_file),
-            "integrator": "volpathmis", "rr_depth": "off", "max_depth": -1, "spp_done": done,
-            "spp_requested": total_spp, "passes_done": index + 1, "passes": n_passes, "seed": seed,
-            "seconds": time.perf_counter() - start}, indent=1)
-        write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure, anchor=anchor),
-                     info: text_writer(text)})
+    def passed(done, total, index, n_passes):
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=total, desc="volpathmis", unit="spp", disable=not progress or lines)
+            if lines:
+                click.echo(f"volpathmis: {total} spp in passes of {pass_spp}", err=True)
+            return
         bar.update(done - bar.n)
         if lines:
-            click.echo(f"volpathmis: {done}/{total_spp} spp (pass {index + 1}/{n_passes}) at "
+            click.echo(f"volpathmis: {done}/{total} spp (pass {index + 1}/{n_passes}) at "
                        f"{time.perf_counter() - start:.1f} s", err=True)
 
     try:
-        with warnings.catch_warnings():
-            if strict:
-                warnings.simplefilter("error", BlackPassWarning)
-            render_reference(scene, total_spp, pass_spp, seed, save, sensor=camera)
+        record = reference_to_files(source, output, spp=spp, sensor=sensor, seed=seed, pass_spp=pass_spp,
+                                    strict=strict, tonemap=tonemap, key=key, exposure=exposure,
+                                    exposure_from=exposure_from, progress=passed)
     except BlackPassWarning as black:
-        bar.close()
         click.echo(f"error: {black}", err=True)
         click.get_current_context().exit(1)
     finally:
-        bar.close()
-    click.echo(f"wrote {exr} and {png} "
-               f"({total_spp} spp, {time.perf_counter() - start:.1f} s)")
+        if bar is not None:
+            bar.close()
+    click.echo(f"wrote {record['outputs']['exr']} and {record['outputs']['png']} "
+               f"({record['spp_done']} spp, {time.perf_counter() - start:.1f} s)")

@@ -7,29 +7,14 @@ together or not at all, and never over an input of the render (the scene and eve
 profile).
 """
 
-import json
 import sys
 import time
-from pathlib import Path
 
 import click
-import numpy as np
 
 from .. import pipeline
-from ..files import check_outputs, json_ready, write_files
-from ..scene.quick import SPP
 from .main import cli
-from .options import (
-    PROGRESS,
-    exposure_anchor,
-    integrator_options,
-    output_paths,
-    pick_sensor,
-    render_params,
-    scene_source_options,
-    tonemap_options,
-    warn_color_model,
-)
+from .options import PROGRESS, integrator_options, scene_source_options, tonemap_options
 
 #: The command's stages: the scene loaded, the render's own (:data:`convsss.pipeline.STAGES`), the files written.
 STAGES = ("scene_load", *pipeline.STAGES, "write")
@@ -120,84 +105,17 @@ def render(source, spp, sensor, seed, output, write_mask, tonemap, key, exposure
       convsss render --mesh bunny --color 0.8,0.5,0.4 --mfp-mm 2 --size-mm 40 -o out/colour
       convsss render scene.xml -o out/scene --aovs exitance,object --mask
     """
-    start = time.perf_counter()
-    quick = source.quick
-    defaults = {"specular": "phong"} if quick else {}
-    render_params(integrator, defaults)  # bad values fail before anything is loaded
-    from ..profiles import TabulatedProfile
-    from ..profiles.models import profile_files
+    from ..outputs import render_to_files
 
-    profiles = profile_files(integrator["profile"] or "")
-    for csv in profiles:
-        TabulatedProfile.from_csv(csv)
-    exr, png, mask_png = output_paths(output, ".exr", ".png", "-mask.png")
-    check_outputs([exr, png, *([mask_png] if write_mask else []), *([stats_path] if stats_path else [])],
-                  [*source.inputs(), *profiles, *([exposure_from] if exposure_from else [])])
-    anchor = exposure_anchor(exposure_from, tonemap)
-
-    from ..backend import load_mitsuba
-    from ..pipeline.integrator import scene_parameters
-
-    mi = load_mitsuba()
-    seconds = {}
     bar = StageProgress(progress)
     try:
-        bar("scene_load")
-        t = time.perf_counter()
-        scene = source.load()
-        base = scene_parameters(scene) or dict(defaults)
-        params = render_params(integrator, base)
-        if source.color is not None:
-            warn_color_model(source.color_model, params.profile, params.profile_total)
-        if write_mask:  # the AOVs asked for (on the command line, else in the scene) and the mask
-            params = render_params({**integrator, "aovs": _with_mask(params.aovs)}, base)
-        seconds["scene_load"] = time.perf_counter() - t
-        integ = mi.load_dict(params.integrator_dict())
-        integ.progress = bar
-        camera = pick_sensor(scene, sensor)
-        spp_used = spp if spp is not None else (SPP if quick else camera.sampler().sample_count())
-        film = np.array(integ.render(scene, camera, seed=seed, spp=spp_used), dtype=np.float64)
-        aovs = integ.aov_names()
-        image = np.concatenate([film[..., :3], film[..., film.shape[2] - len(aovs):]], axis=2)  # RGB(A) + AOVs
-        channels = ["R", "G", "B", *aovs]
-        seconds.update(integ.stats["seconds"])
-        bar("write")
-        t = time.perf_counter()
-        from ..image import exr_writer, mask_png_writer, png_writer
-
-        stats = {"command": "render", "scene": None if quick else str(source.scene_file), "quick": source.summary(),
-                 "seed": seed, "spp": spp_used, "sensor": scene.sensors().index(camera),
-                 "light_scale": source.light_scale, "orbit_deg": source.orbit_deg,
-                 "outputs": {"exr": str(exr), "png": str(png), "mask": str(mask_png) if write_mask else None},
-                 "aovs": aovs,
-                 "tonemap": {"method": tonemap, "key": key, "exposure": exposure, "exposure_from": exposure_from},
-                 **integ.stats, "seconds": seconds}
-
-        def finish(tmp=None):
-            """Time the writes and the whole run; with ``tmp``, save the stats there (the last file written)."""
-            seconds.setdefault("write", time.perf_counter() - t)
-            seconds.setdefault("total", time.perf_counter() - start)
-            if tmp is not None:
-                Path(tmp).write_text(json.dumps(json_ready(stats), indent=1))
-
-        writers = {exr: exr_writer(image, channels), png: png_writer(image, tonemap, key, exposure, anchor=anchor)}
-        if write_mask:
-            writers[mask_png] = mask_png_writer(image[..., channels.index("mask.Y")])
-        if stats_path:
-            writers[stats_path] = finish
-        write_files(writers)
-        finish()
+        stats = render_to_files(source, output, spp=spp, sensor=sensor, seed=seed, mask=write_mask, tonemap=tonemap,
+                                key=key, exposure=exposure, exposure_from=exposure_from, stats_path=stats_path,
+                                progress=bar, **integrator)
     except BaseException:
         bar.close(failed=True)
         raise
     bar.close()
-    written = f"{exr}, {png} and {mask_png}" if write_mask else f"{exr} and {png}"
-    click.echo(f"wrote {written} ({seconds['total']:.1f} s)")
-
-
-def _with_mask(aovs):
-    """The ``aovs`` parameter with ``mask`` added (for ``--mask``) unless it names it already."""
-    from ..pipeline.params import parse_aovs
-
-    names = parse_aovs(aovs)
-    return ",".join(names if "mask" in names else (*names, "mask"))
+    outputs = [stats["outputs"][k] for k in ("exr", "png", "mask") if k in stats["outputs"]]
+    written = f"{', '.join(outputs[:-1])} and {outputs[-1]}"
+    click.echo(f"wrote {written} ({stats['seconds']['total']:.1f} s)")

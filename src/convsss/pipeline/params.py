@@ -253,3 +253,10 @@ class RenderParams:
     def integrator_dict(self):
         """A Mitsuba dictionary ``{"type": "convsss", ...}`` with these parameters."""
         return {"type": "convsss", **self.to_dict()}
+
+
+def render_params(options, base=None):
+    """:class:`RenderParams` from the command's options (only those given) over ``base`` (a dict)."""
+    values = dict(base or {})
+    values.update({name: value for name, value in options.items() if value is not None})
+    return RenderParams(**values)

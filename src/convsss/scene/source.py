@@ -3,6 +3,7 @@ mean free path) and a size framed by the quick scene (:mod:`.quick`); the film's
 camera orbited (:mod:`.variations`). A value: checked before anything is loaded, loaded when asked.
 """
 
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -121,6 +122,23 @@ class SceneSource:
             scene = load_scene(quick_scene(mesh, made, self.size_mm, self.width or WIDTH, self.height or HEIGHT,
                                            floor=self.floor, boundary=self.boundary))
         return orbit_camera(scale_lights(scene, self.light_scale), self.orbit_deg)
+
+    def warn_color_model(self, profile, total):
+        """Warn (:class:`~convsss.scene.presets.ColorModelWarning`) when the quick scene's object, made from
+        ``color`` under ``color_model``, renders with another total (the integrator's ``profile`` and
+        ``profile_total``, :func:`~convsss.profiles.models.rendered_total_of`); nothing without a colour."""
+        if self.color is None:
+            return
+        from ..profiles.models import DEFAULT_COLOR_MODEL, parse_profile_spec, rendered_total_of
+        from .presets import ColorModelWarning
+
+        default, per_object = parse_profile_spec(profile)
+        spec, model = per_object.get("object", default), self.color_model or DEFAULT_COLOR_MODEL
+        rendered = rendered_total_of(spec, total)
+        if rendered is not None and rendered != model:
+            warnings.warn(f"--color is the {model} total reflectance but the object renders with the {rendered} "
+                          f"total: give --color-model {rendered} to match the colour", ColorModelWarning,
+                          stacklevel=2)
 
     def summary(self):
         """The quick scene's options (for the stats), None with a scene file."""
