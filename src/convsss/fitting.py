@@ -231,7 +231,12 @@ class _Problem:
         self.variables = _Variables(base.eta)
         self.exposure_at, self.eta_at = 6, 6 + int(fit_exposure)
         self.history, self.cache = [], {}
-        self.lower = self.upper = None
+        lower, upper = self.variables.bounds()
+        if fit_exposure:
+            lower, upper = np.append(lower, -20.0), np.append(upper, 20.0)
+        if fit_eta:
+            lower, upper = np.append(lower, np.log(ETA_BOUNDS[0] - 1.0)), np.append(upper, np.log(ETA_BOUNDS[1] - 1.0))
+        self.lower, self.upper = lower, upper
 
     def split(self, x):
         """``(albedo, mfp, exposure, eta)`` of the variables ``x``."""
@@ -240,17 +245,19 @@ class _Problem:
         return albedo, mfp, scale, (1.0 + float(np.exp(x[self.eta_at])) if self.fit_eta else self.base.eta)
 
     def start(self, albedo, mfp, eta):
-        """The variables of a start, and their bounds (kept for :meth:`solve`)."""
+        """The variables of a start."""
         x0 = self.variables.encode(albedo, mfp)
-        lower, upper = self.variables.bounds()
         if self.fit_exposure:
-            x0, lower, upper = np.append(x0, 0.0), np.append(lower, -20.0), np.append(upper, 20.0)
+            x0 = np.append(x0, 0.0)
         if self.fit_eta:
             x0 = np.append(x0, np.log(eta - 1.0))
-            lower = np.append(lower, np.log(ETA_BOUNDS[0] - 1.0))
-            upper = np.append(upper, np.log(ETA_BOUNDS[1] - 1.0))
-        self.lower, self.upper = lower, upper
         return x0
+
+    def replan(self, albedo, mfp, eta):
+        """The samples sized, and the paths' choices drawn, by this material from the next render on
+        (:meth:`Forward.replan`); the renders kept are of the old plan, so forgotten."""
+        self.forward.replan(material_of(albedo, mfp, eta, self.base.name))
+        self.cache.clear()
 
     def render(self, albedo, mfp, eta):
         """The render of a material (the last one kept: the Jacobian starts where the residuals were)."""
@@ -291,8 +298,8 @@ class _Problem:
         return columns.reshape(n * 3, len(x))
 
     def solve(self, x, max_evaluations):
-        """SciPy's least squares from ``x`` (after :meth:`start`); the variables to 1e-5, far below what the image's
-        noise constrains."""
+        """SciPy's least squares from ``x`` (:meth:`start`, or where a solve ended) within the bounds; the variables
+        to 1e-5, far below what the image's noise constrains."""
         from scipy.optimize import least_squares
 
         return least_squares(self.residuals, x, jac=self.jacobian, bounds=(self.lower, self.upper), loss="soft_l1",
@@ -375,8 +382,7 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
             if not np.any(np.abs(np.log(mfp / planned)) > np.log(REPLAN_FACTOR)):
                 break
             planned = mfp
-            forward.replan(material_of(albedo, mfp, eta, base.name))
-            problem.cache.clear()
+            problem.replan(albedo, mfp, eta)
             solution = problem.solve(solution.x, max_evaluations)
             albedo, mfp, scale, eta = problem.split(solution.x)
         image = problem.render(albedo, mfp, eta)
