@@ -16,8 +16,8 @@ class Parameter:
     """One parameter: ``kind`` is ``int``, ``float`` or ``str``.
 
     Numbers must lie in ``[low, high]`` (``(low, high]`` with ``low_open``); strings (and numbers, when given) must
-    be one of ``choices``. A ``None`` default makes the parameter optional. ``exposed = False`` marks a value the
-    renderer sets itself (e.g. the pixel footprint), not a user option.
+    be one of ``choices``; a number may be ``inf`` only where ``infinite``. A ``None`` default makes the parameter
+    optional. ``exposed = False`` marks a value the renderer sets itself (e.g. the pixel footprint), not a user option.
     """
 
     name: str
@@ -29,6 +29,7 @@ class Parameter:
     low_open: bool = False
     choices: tuple = ()
     exposed: bool = True
+    infinite: bool = False
 
     def allowed(self):
         """What is allowed, in words (for errors and help).
@@ -50,7 +51,7 @@ class Parameter:
         if self.high is not None:
             bounds.append(f"<= {_show(self.high)}")
         whole = "a whole number" if self.kind is int else "a number"
-        return whole + (" " + " and ".join(bounds) if bounds else "")
+        return whole + (" " + " and ".join(bounds) if bounds else "") + (", or inf" if self.infinite else "")
 
     def check(self, value):
         """``value`` converted to ``kind`` if it is allowed; else a one-line :class:`ConvsssError`."""
@@ -67,7 +68,9 @@ class Parameter:
             converted = self.kind(value)
         except (TypeError, ValueError, OverflowError):
             raise bad from None
-        if (self.kind is int and converted != value) or not math.isfinite(converted):
+        if (self.kind is int and converted != value) or math.isnan(converted):
+            raise bad
+        if math.isinf(converted) and not (self.infinite and converted > 0):
             raise bad
         too_low = self.low is not None and (converted <= self.low if self.low_open else converted < self.low)
         too_high = self.high is not None and converted > self.high

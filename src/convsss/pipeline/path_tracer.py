@@ -79,6 +79,7 @@ from .irradiance import Entry, fresnel_transmittance, refracted_cosine
 from .mesh_exitance import MeshExitance, usable
 from .mis import power_heuristic
 from .objects import hit_indices
+from .walk import RandomWalk
 
 mi = load_mitsuba()
 
@@ -154,6 +155,8 @@ class PathTracer:
         self._tags = self._weight = None
         #: Up to this many emitters, direct light samples each of them (else one chosen by the scene).
         self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
+        #: With ``walk_depth`` > 0, the camera's paths walk through the objects' media (:mod:`.walk`).
+        self.walk = RandomWalk(scene, params) if params.walk_depth > 0 else None
         self.attach([None] * len(objects))
 
     def attach(self, transports, screen=None):
@@ -335,7 +338,10 @@ class PathTracer:
 
     # --- the path loop ----------------------------------------------------------------------------------------------
     def shade(self, sampler, ray):
-        """Radiance (mi.Color3f) and hit mask (mi.Bool) for a batch of camera rays, drawing from ``sampler``."""
+        """Radiance (mi.Color3f) and hit mask (mi.Bool) for a batch of camera rays, drawing from ``sampler``: by the
+        random walk where ``walk_depth`` > 0 (:class:`~.walk.RandomWalk`), else by the loop below."""
+        if self.walk is not None:
+            return self.walk.trace(sampler, ray)
         return self._trace(sampler, ray, 0)
 
     def incident(self, sampler, ray, weight, tags):

@@ -1,0 +1,279 @@
+"""The random walk: paths through the translucent objects' own media, the path tracer's volumetric estimator.
+
+Where diffusion does not hold (thin parts, back light, objects a few mean free paths across, low albedo, anisotropic
+scattering) the light under the surface is found by following it: a path that refracts into an object walks through
+its interior medium (Mitsuba's: homogeneous or heterogeneous, its own phase function) and leaves it through the
+boundary's BSDF, then goes on as any path does. With nothing cut short this is a volumetric path tracer, the same
+estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectral MIS):
+
+* **free flights** drawn by one channel's extinction per path (the hero channel ``c``, uniform over R, G, B), and
+  in a heterogeneous medium by its majorant with null collisions (delta tracking);
+* every event's probability kept for **every** channel: the path's weight in channel ``i`` is
+
+      w_i = f_i / mean_j p_j,                                                                           (Eq. W1)
+
+  ``f_i`` the path's contribution in channel ``i`` and ``p_j`` its density had channel ``j`` drawn it (the one-sample
+  balance heuristic over channels), tracked as the ratios ``p_j / f_i`` (:func:`_update`, a 3 x 3 matrix per lane);
+* at a scattering vertex, **next-event estimation** to an emitter (chosen by the scene) through null boundaries and
+  the media between, combined with **phase-function sampling** by the balance heuristic on the same ratios
+  (:func:`_mis`, Eq. W2); a dielectric boundary stops the shadow ray (the light there comes by the sampled
+  directions, as in ``volpathmis``);
+* at a boundary, the scene's BSDF: a smooth or rough dielectric refracts out or reflects back in, a null one lets
+  the path through into the next medium;
+* Russian roulette on the path's weight from ``rr_depth`` (not at albedo ~1 inside a medium, where it would only add
+  fireflies: there the roulette's survival odds are the weight itself, capped at 1), ``max_depth`` surface bounces
+  and at most :data:`MAX_WALK` scattering events inside media.
+"""
+
+import drjit as dr
+
+from ..backend import load_mitsuba
+
+mi = load_mitsuba()
+
+#: The most scattering events a path makes inside media (the walk's cap; a path past it ends there).
+MAX_WALK = 100_000
+
+
+def _ones(n):
+    return tuple(dr.full(mi.Color3f, 1.0, n) for _ in range(3))
+
+
+def _update(ratios, p, f, active):
+    """The path-density ratios ``p_j / f_i`` (three Color3f: row ``i``, column ``j``) times this event's ``p / f``
+    (Eq. W1), where ``active``; a ratio that is not finite counts as 0."""
+    out = []
+    for i in range(3):
+        ratio = mi.Color3f(p) / mi.Color3f(f)[i]
+        ratio = dr.select(dr.isfinite(ratio), ratio, 0.0) * ratios[i]
+        out.append(dr.select(active, dr.select(dr.isnan(ratio), 0.0, ratio), ratios[i]))
+    return tuple(out)
+
+
+def _where(mask, ratios, others):
+    """``ratios`` where ``mask``, else ``others``."""
+    return tuple(dr.select(mask, ratios[i], others[i]) for i in range(3))
+
+
+def _mis(ratios, others=None):
+    """The path's weight per channel from its ratios (Eq. W1: ``3 / sum_j p_j / f_i``); with ``others`` (the same
+    path's ratios under another technique), its balance-heuristic weight between the two (Eq. W2:
+    ``3 / sum_j (p_j + p'_j) / f_i``)."""
+    weight = []
+    for i in range(3):
+        row = ratios[i] if others is None else ratios[i] + others[i]
+        total = dr.sum(row)
+        weight.append(dr.select(total == 0.0, 0.0, 3.0 / total))
+    return mi.Color3f(*weight)
+
+
+def _interaction(source):
+    """A plain :class:`mitsuba.Interaction3f` of a surface or medium interaction (where the last scattering was)."""
+    it = dr.zeros(mi.Interaction3f, dr.width(source.p))
+    it.t, it.time, it.wavelengths, it.p = source.t, source.time, source.wavelengths, source.p
+    it.n = source.n if isinstance(source, mi.SurfaceInteraction3f) else dr.zeros(mi.Normal3f, dr.width(source.p))
+    return it
+
+
+class RandomWalk:
+    """The volumetric paths of one scene (module doc); :meth:`trace` gives their radiance."""
+
+    def __init__(self, scene, params):
+        self.scene = scene
+        self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
+        self.rr_depth = params.rr_depth
+
+    @dr.syntax
+    def trace(self, sampler, ray):
+        """Radiance (mi.Color3f) and first-hit mask (mi.Bool) of camera rays ``ray``, drawing from ``sampler``."""
+        scene = self.scene
+        n = dr.width(ray.o)
+        ray = mi.Ray3f(ray)
+        channel = dr.minimum(mi.UInt32(sampler.next_1d() * 3.0), 2)
+        result = dr.zeros(mi.Color3f, n)
+        ratios, ratios_nee = _ones(n), _ones(n)
+        eta = dr.full(mi.Float, 1.0, n)
+        medium = dr.zeros(mi.MediumPtr, n)
+        si = dr.zeros(mi.SurfaceInteraction3f, n)
+        last_scatter = dr.zeros(mi.Interaction3f, n)
+        last_null = dr.full(mi.Bool, False, n)
+        needs_intersection = dr.full(mi.Bool, True, n)
+        specular_chain = dr.full(mi.Bool, True, n)
+        valid = dr.full(mi.Bool, False, n)
+        depth = dr.zeros(mi.UInt32, n)  # bounces on opaque surfaces
+        events = dr.zeros(mi.UInt32, n)  # scattering events in media, reflections and refractions at their boundaries
+        active = dr.full(mi.Bool, True, n)
+        while active:
+            # Russian roulette on the path's weight, the odds the weight itself (eta^2: radiance's scaling across a
+            # boundary), so that a path of weight ~1 is never cut (at albedo ~1 the cut paths' rare heavy weights
+            # would be fireflies).
+            q = dr.minimum(dr.max(_mis(ratios)) * dr.square(eta), 1.0)
+            roulette = active & ~last_null & (depth + events > self.rr_depth)
+            active &= ~(roulette & (sampler.next_1d(active) >= q))
+            ratios = _update(ratios, q, 1.0, roulette)
+            last_null = dr.full(mi.Bool, False, n)
+            active &= (depth < self.max_depth) & (events < MAX_WALK) & dr.any(_mis(ratios) != 0.0)
+
+            # ---- in a medium: a free flight (Eq. W1's densities for every channel) ----
+            active_medium = active & (medium != None)  # noqa: E711 (a Dr.Jit pointer array)
+            active_surface = active & ~active_medium
+            mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), channel, active_medium)
+            ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid()] = mei.t
+            intersect = needs_intersection & active_medium
+            si[intersect] = scene.ray_intersect(ray, intersect)
+            needs_intersection &= ~active_medium
+            mei.t[active_medium & (si.t < mei.t)] = dr.inf
+            spectral = active_medium & medium.has_spectral_extinction()
+            transmittance, flight_pdf = medium.transmittance_eval_pdf(mei, si, spectral)
+            ratios = _update(ratios, flight_pdf, transmittance, spectral)
+            ratios_nee = _update(ratios_nee, flight_pdf, transmittance, spectral)
+            escaped = active_medium & ~mei.is_valid()
+            active_medium &= mei.is_valid()
+            spectral &= active_medium
+            grey = active_medium & ~spectral
+
+            null_probability = dr.mean(mei.sigma_n / mei.combined_extinction)
+            null = active_medium & (sampler.next_1d(active_medium) < null_probability)
+            scatter = active_medium & ~null
+            last_null = null
+            events[scatter] += 1
+            last_scatter[scatter] = _interaction(mei)
+            specular_chain &= ~scatter
+            ratios = _update(ratios, null_probability, mei.sigma_n, spectral & null)
+            ratios_nee = _update(ratios_nee, 1.0, mei.sigma_n, spectral & null)
+            ratios_nee = _update(ratios_nee, 1.0, null_probability, grey & null)
+            ray.o[null] = mei.p
+            si.t[null] = si.t - mei.t
+            ratios = _update(ratios, 1.0 - null_probability, mei.sigma_s, spectral & scatter)
+            ratios = _update(ratios, mei.sigma_t, mei.sigma_s, grey & scatter)
+
+            # ---- a scattering vertex: next-event estimation and the phase function ----
+            phase_ctx = mi.PhaseFunctionContext(sampler)
+            phase = mei.medium.phase_function()
+            phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
+            valid |= scatter
+            end_nee, end_uni, emitted, ds = self._emitter(_interaction(mei), medium, ratios, channel, sampler,
+                                                          scatter)
+            phase_value, phase_pdf = phase.eval_pdf(phase_ctx, mei, ds.d, scatter)
+            end_nee = _update(end_nee, 1.0, phase_value, scatter)
+            end_uni = _update(end_uni, dr.select(ds.delta, 0.0, phase_pdf), phase_value, scatter)
+            result[scatter] += _mis(end_nee, end_uni) * emitted  # Eq. W2
+            ratios_nee = _where(scatter, ratios, ratios_nee)
+            wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
+                                                       sampler.next_2d(scatter), scatter)
+            ray[scatter] = mei.spawn_ray(wo)
+            needs_intersection |= scatter
+            ratios = _update(ratios, phase_pdf, phase_weight * phase_pdf, scatter)
+            ratios_nee = _update(ratios_nee, 1.0, phase_weight * phase_pdf, scatter)
+
+            # ---- at a surface: emission seen, then the BSDF ----
+            active_surface |= escaped
+            intersect = active_surface & needs_intersection
+            si[intersect] = scene.ray_intersect(ray, intersect)
+            valid[active_surface & (depth == 0) & (events == 0)] = si.is_valid()
+            direct = (active_surface & (depth == 0) & (events == 0)) | specular_chain
+            emitter = si.emitter(scene)
+            seen = active_surface & (emitter != None)  # noqa: E711
+            to_emitter = mi.DirectionSample3f(scene, si, last_scatter)
+            emitter_pdf = scene.pdf_emitter_direction(last_scatter, to_emitter, seen & ~direct)
+            ratios_nee = _update(ratios_nee, emitter_pdf, 1.0, seen & ~direct)
+            radiance = emitter.eval(si, seen)
+            result[seen] += dr.select(direct, _mis(ratios), _mis(ratios, ratios_nee)) * radiance
+            active_surface &= si.is_valid()
+
+            ctx = mi.BSDFContext()
+            bsdf = si.bsdf(ray)
+            lit = active_surface & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth) & (depth + 1 < self.max_depth)
+            end_nee, end_uni, emitted, ds = self._emitter(si, medium, ratios, channel, sampler, lit)
+            bsdf_value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), lit)
+            end_nee = _update(end_nee, 1.0, bsdf_value, lit)
+            end_uni = _update(end_uni, dr.select(ds.delta, 0.0, bsdf_pdf), bsdf_value, lit)
+            result[lit] += _mis(end_nee, end_uni) * emitted
+
+            bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(active_surface), sampler.next_2d(active_surface),
+                                          active_surface)
+            active_surface &= bs.pdf > 0.0
+            eta[active_surface] *= bs.eta
+            ray[active_surface] = si.spawn_ray(si.to_world(bs.wo))
+            needs_intersection |= active_surface
+            solid = active_surface & ~mi.has_flag(bs.sampled_type, mi.BSDFFlags.Null)
+            specular_chain |= solid & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+            specular_chain &= ~(active_surface & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Smooth))
+            boundary = active_surface & si.is_medium_transition()
+            depth[solid & ~boundary] += 1
+            events[solid & boundary] += 1
+            last_scatter[solid] = _interaction(si)
+            ratios_nee = _where(solid, ratios, ratios_nee)
+            ratios = _update(ratios, bs.pdf, bsdf_weight * bs.pdf, active_surface)
+            ratios_nee = _update(ratios_nee, 1.0, bsdf_weight * bs.pdf, solid)
+            medium[boundary] = si.target_medium(ray.d)
+            active &= active_surface | active_medium
+        return result, valid
+
+    @dr.syntax
+    def _emitter(self, origin, medium, ratios, channel, sampler, active):
+        """Next-event estimation from ``origin`` (an interaction in ``medium``): an emitter sample and its shadow ray
+        through null boundaries and the media between (a ratio-tracking transmittance, every channel's density
+        kept); ``(ratios as light sampling drew it, as the path's own sampling would, emitted L, the sample)``."""
+        scene = self.scene
+        with_nee, with_uni = ratios, ratios
+        ds, weight = scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
+        emitted = dr.select(ds.pdf == 0.0, 0.0, weight * ds.pdf)
+        active = mi.Bool(active & (ds.pdf != 0.0))
+        with_nee = _update(with_nee, ds.pdf, 1.0, active)
+        ray = origin.spawn_ray_to(ds.p)
+        max_dist = mi.Float(ray.maxt)
+        medium = mi.MediumPtr(medium)
+        if isinstance(origin, mi.SurfaceInteraction3f):
+            medium[origin.is_medium_transition()] = origin.target_medium(ray.d)
+        total = dr.zeros(mi.Float, dr.width(max_dist))
+        si = dr.zeros(mi.SurfaceInteraction3f, dr.width(max_dist))
+        needs_intersection = dr.full(mi.Bool, True, dr.width(max_dist))
+        while active:
+            remaining = max_dist - total
+            ray.maxt = remaining
+            active &= remaining > 0.0
+            active_medium = active & (medium != None)  # noqa: E711
+            active_surface = active & ~active_medium
+            mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), channel, active_medium)
+            ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid()] = dr.minimum(mei.t, remaining)
+            intersect = needs_intersection & active_medium
+            si[intersect] = scene.ray_intersect(ray, intersect)
+            mei.t[active_medium & (si.t < mei.t)] = dr.inf
+            needs_intersection &= ~active_medium
+            spectral = active_medium & medium.has_spectral_extinction()
+            grey = active_medium & ~spectral
+            t = dr.minimum(remaining, dr.minimum(mei.t, si.t)) - mei.mint
+            transmittance = dr.exp(-t * mei.combined_extinction)
+            flight_pdf = dr.select((si.t < mei.t) | (mei.t > remaining), transmittance,
+                                   transmittance * mei.combined_extinction)
+            with_nee = _update(with_nee, flight_pdf, transmittance, spectral)
+            with_uni = _update(with_uni, flight_pdf, transmittance, spectral)
+            total[active_medium & (mei.t > remaining) & mei.is_valid()] = ds.dist
+            mei.t[active_medium & (mei.t > remaining)] = dr.inf
+            escaped = active_medium & ~mei.is_valid()
+            active_medium &= mei.is_valid()
+            spectral &= active_medium
+            grey &= active_medium
+            total[active_medium] += mei.t
+            ray.o[active_medium] = mei.p
+            si.t[active_medium] = si.t - mei.t
+            with_nee = _update(with_nee, 1.0, mei.sigma_n, spectral)
+            with_uni = _update(with_uni, dr.mean(mei.sigma_n / mei.combined_extinction), mei.sigma_n, spectral)
+            with_nee = _update(with_nee, 1.0, mei.sigma_n / mei.combined_extinction, grey)
+            intersect = active_surface & needs_intersection
+            si[intersect] = scene.ray_intersect(ray, intersect)
+            active_surface |= escaped
+            total[active_surface] += si.t
+            active_surface &= si.is_valid() & active & ~active_medium
+            bsdf = si.bsdf(ray)
+            passed = bsdf.eval_null_transmission(si, active_surface)
+            with_nee = _update(with_nee, 1.0, passed, active_surface)
+            with_uni = _update(with_uni, 1.0, passed, active_surface)
+            ray[active_surface] = si.spawn_ray(ray.d)
+            ray.maxt = remaining
+            needs_intersection |= active_surface
+            active &= (active_medium | active_surface) & dr.any(_mis(with_uni) != 0.0)
+            crossing = active_surface & si.is_medium_transition()
+            medium[crossing] = si.target_medium(ray.d)
+        return with_nee, with_uni, emitted, ds
