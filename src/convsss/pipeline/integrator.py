@@ -233,6 +233,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         spp_used = spp if spp else sensor.sampler().sample_count()
         self._announce("shading")
         timer = StageTimer(sync=dr.sync_thread)
+        if tracer.walk is not None:
+            tracer.walk.reset()
         self._nested = True
         try:
             # Mitsuba's film kernel scatter-adds each sample to every pixel its reconstruction filter covers: it runs
@@ -251,6 +253,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                               "spp": int(spp_used)}
         self.stats["transports"] = [t.stats for t in tracer.transports]
         self.stats["exitance_lookups"] = tracer.lookups
+        if tracer.walk is not None:
+            self.stats["walk"] = tracer.walk.stats
         return image
 
     def sample(self, scene, sampler, ray, medium=None, active=True):

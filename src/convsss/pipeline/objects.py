@@ -159,7 +159,8 @@ def _rgb(params, key, what, name):
     return np.broadcast_to(value, (3,)).copy() if value.size in (1, 3) else value[:3]
 
 
-def _phase_g(params):
+def phase_g(params):
+    """The mean cosine ``g`` of a medium's phase function from its traversed ``params`` (0: isotropic)."""
     return float(np.asarray(params["phase_function.g"]).reshape(-1)[0]) if "phase_function.g" in params else 0.0
 
 
@@ -169,7 +170,7 @@ def medium_material(mi, medium, eta, unit_mm, name):
     sigma_t = _rgb(params, "sigma_t.value.value", "sigma_t", name)
     albedo = _rgb(params, "albedo.value.value", "albedo", name)
     scale = float(params["scale"]) if "scale" in params else 1.0
-    return Material.from_medium(sigma_t * scale / unit_mm, albedo, 1.0, _phase_g(params), eta, name)
+    return Material.from_medium(sigma_t * scale / unit_mm, albedo, 1.0, phase_g(params), eta, name)
 
 
 def interior_material(mi, medium, eta, unit_mm, name, shape, to_world, orientation, bbox_mm):
@@ -178,7 +179,7 @@ def interior_material(mi, medium, eta, unit_mm, name, shape, to_world, orientati
     finite, non-negative, albedo at most 1) and their mean, or its one material where it does not vary there."""
     if medium.class_name() == "HomogeneousMedium":
         return medium_material(mi, medium, eta, unit_mm, name), None
-    field = MediumField(medium, unit_mm, _phase_g(mi.traverse(medium)), name)
+    field = MediumField(medium, unit_mm, phase_g(mi.traverse(medium)), name)
 
     def surface(count, seed=0):
         """About ``count`` stratified surface points (mm), their outward normals and the surface's area (mm^2)."""

@@ -6,8 +6,6 @@ a bad value gets the same one-line :class:`~convsss.errors.ConvsssError` everywh
 convolution, ``epsilon`` of the hierarchical method): every declaration has one default, stated once.
 """
 
-import math
-
 from ..errors import ConvsssError
 from ..parameters import Parameter, check_parameters
 from ..profiles.incidence import Orders
@@ -119,10 +117,11 @@ def render_parameters():
         Parameter("phong_exponent", float, 64.0, "Exponent of the Phong lobe with specular = phong.", low=0.0,
                   low_open=True),
         Parameter("walk_depth", float, 0.0, "Light under a translucent object's surface by a random walk through its "
-                  "medium (volumetric path tracing: the scene's medium, phase function and boundary BSDF) instead of "
-                  "the transport's diffusion: 0 renders with the transport alone (paper Eq. 7), inf follows every "
-                  "walk to its end, which is Mitsuba's volpathmis for those objects.", low=0.0, infinite=True,
-                  choices=(0.0, math.inf)),
+                  "medium (volumetric path tracing: the scene's medium, phase function and boundary BSDF), ended "
+                  "in the diffusion field solved on the object's volume where it scatters at least this many "
+                  "transport mean free paths (1/sigma_t') below the surface, in the channels where diffusion holds. "
+                  "0 renders with the transport alone (paper Eq. 7); inf follows every walk to its end, which is "
+                  "Mitsuba's volpathmis for those objects.", low=0.0, infinite=True),
         Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
                   "light; -1 is unbounded with Russian roulette; 0 is not allowed).", low=-1),
         Parameter("rr_depth", int, 5, "Depth from which Russian roulette may end paths.", low=1),

@@ -159,13 +159,16 @@ class PathTracer:
         self.walk = RandomWalk(scene, params) if params.walk_depth > 0 else None
         self.attach([None] * len(objects))
 
-    def attach(self, transports, screen=None):
+    def attach(self, transports, screen=None, field=None):
         """Read ``M`` from ``transports`` from now on: one per object (``exitance(points_mm) -> (K, 3)``), or
         ``None`` for an object whose transport is not built yet (the hits of :meth:`incident` on it are returned, to
         be resolved later); ``screen`` (:class:`~.screen.ScreenExitance`, optional): the objects' exitance at the
-        pixel centres they are seen at, read instead of asking the transports where it is known. Counts and tables
-        of earlier transports are dropped."""
+        pixel centres they are seen at, read instead of asking the transports where it is known; ``field``
+        (:class:`~.field.DiffusionField`, optional): where the random walk ends. Counts and tables of earlier
+        transports are dropped."""
         self.transports, self.screen = list(transports), screen
+        if self.walk is not None:
+            self.walk.field = field
         #: Transport queries since :meth:`attach` (the stats' ``exitance_lookups``).
         self.lookups = 0
         #: The mesh tables of :attr:`transports`, by object (:meth:`_hit_exitance`).

@@ -37,6 +37,7 @@ from ..timing import StageTimer
 from . import STAGES
 from .aovs import FirstHitAOVs
 from .camera import check_camera, first_hits, sensor_frame
+from .field import diffusion_field
 from .irradiance import keeps_irradiance
 from .lighting import light_samples
 from .objects import find_translucent_objects
@@ -98,7 +99,8 @@ class PreparedState:
     ``objects``, ``visible`` and ``cells`` hold one entry per object seen by the camera: the object, its visible
     points, the pixel footprint at its depth (mm); ``lighting`` their samples and irradiance (:class:`~.lighting.
     Lighting`: the samples with their direct irradiance, direct + indirect without the light of translucent objects,
-    the indirect paths' hits on translucent objects), ``transports`` theirs; ``survey`` what
+    the indirect paths' hits on translucent objects), ``transports`` theirs, ``diffusion`` the field the random walk
+    ends in (:func:`~.field.diffusion_field`, None without one); ``survey`` what
     :meth:`RenderSession.survey` found (all objects, the frame, what each pixel centre sees, the plan);
     ``params`` the parameters it was built with (``RenderParams.to_dict()``) and ``fingerprint`` the scene's and the
     crop window's :func:`scene_fingerprint` then, so that a later render knows what of it still holds.
@@ -113,6 +115,7 @@ class PreparedState:
     cells: list
     lighting: object
     transports: list = field(default_factory=list)
+    diffusion: object = None
     survey: tuple = None
     params: dict = None
     fingerprint: tuple = None
@@ -182,9 +185,10 @@ class RenderSession:
         seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
         return objects, frame, seen, plan_samples(scene, sensor, frame, objects, seen, p)
 
-    def _attach(self, tracer, transports, screen):
-        """``tracer`` reads ``transports`` and ``screen`` from now on; the AOVs read the tracer."""
-        self.tracer = tracer.attach(transports, screen)
+    def _attach(self, tracer, transports, screen, diffusion=None):
+        """``tracer`` reads ``transports``, ``screen`` and the ``diffusion`` field from now on; the AOVs read the
+        tracer."""
+        self.tracer = tracer.attach(transports, screen, diffusion)
         self.aovs = FirstHitAOVs(tracer, parse_aovs(self.params.aovs))
         return self.tracer
 
@@ -211,15 +215,17 @@ class RenderSession:
             per_object[k].update(samples=len(s), flux=total.tolist(), flux_direct=flux_direct.tolist(),
                                  flux_indirect=(total - flux_direct).tolist(),
                                  flux_from_translucent=flux_translucent.tolist())
+        with stage("transport"):
+            diffusion = diffusion_field(shown, transports, p)
         with stage("screen"):
             screen = ScreenExitance(sensor, shown, shown_at, transports, p.unit_mm)
-        self._attach(tracer, transports, screen)
+        self._attach(tracer, transports, screen, diffusion)
         self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object,
                       "hidden": list(plan.hidden), "samples": int(sum(o["samples"] for o in per_object)),
                       "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
         self.prepared = PreparedState(scene, sensor, as_seed(seed), frame, shown, shown_at, cells, lighting,
-                                      transports, survey=(objects, frame, seen, plan), params=p.to_dict(),
+                                      transports, diffusion, survey=(objects, frame, seen, plan), params=p.to_dict(),
                                       fingerprint=fingerprint)
         return self.tracer
 
@@ -256,7 +262,7 @@ class RenderSession:
         state.visible = [seen[q.index] for q in plan.objects]
         with timer("screen"):
             screen = ScreenExitance(sensor, state.objects, state.visible, state.transports, self.params.unit_mm)
-        self._attach(self.tracer, state.transports, screen)
+        self._attach(self.tracer, state.transports, screen, state.diffusion)
         state.survey, state.fingerprint = survey, fingerprint
         self.stats.update(seconds=dict(timer), screen_exitance={"usable": screen.usable, "queries": screen.queries})
         return ["irradiance", "indirect", "transport"]
@@ -307,10 +313,12 @@ class RenderSession:
         transports = build_transports(state.samples, state.irradiance, objects, state.cells, state.frame, p, stage)
         transports, _, passes = translucent_passes(transports, state.lighting, tracer, p.indirect_passes, stage,
                                                    self.stop)
+        with stage("transport"):
+            diffusion = diffusion_field(objects, transports, p)
         with stage("screen"):
             screen = ScreenExitance(state.sensor, objects, state.visible, transports, p.unit_mm)
-        self._attach(tracer, transports, screen)
-        state.objects, state.transports, state.params = objects, transports, p.to_dict()
+        self._attach(tracer, transports, screen, diffusion)
+        state.objects, state.transports, state.diffusion, state.params = objects, transports, diffusion, p.to_dict()
         for summary, obj in zip(self.stats.get("objects", []), objects):
             summary.update(obj.summary())
         self.stats.update(parameters=p.to_dict(), seconds=dict(timer), translucent_passes=passes,

@@ -55,6 +55,11 @@ def _where(mask, ratios, others):
     return tuple(dr.select(mask, ratios[i], others[i]) for i in range(3))
 
 
+def _ended(ratios, ends):
+    """The ratios with the rows of the channels that ``ends`` (Color3f, 1 or 0) set to 0: their weight is 0 on."""
+    return tuple(dr.select(ends[i] > 0.0, 0.0, ratios[i]) for i in range(3))
+
+
 def _mis(ratios, others=None):
     """The path's weight per channel from its ratios (Eq. W1: ``3 / sum_j p_j / f_i``); with ``others`` (the same
     path's ratios under another technique), its balance-heuristic weight between the two (Eq. W2:
@@ -82,6 +87,24 @@ class RandomWalk:
         self.scene = scene
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         self.rr_depth = params.rr_depth
+        #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.
+        self.field = None
+        #: Counts since :meth:`reset`: ``paths`` traced, scattering ``events`` in media, paths ``ended`` in the
+        #: field (in some channel) and ``capped`` at :data:`MAX_WALK` events.
+        self.counts = {}
+        self.reset()
+
+    def reset(self):
+        """Start the counts (:attr:`counts`) again."""
+        self.counts = {"paths": 0, "events": 0, "ended": 0, "capped": 0}
+
+    @property
+    def stats(self):
+        """The counts and what they say: mean scattering events per path, the share of paths ended in the field and
+        cut by the cap."""
+        c, paths = self.counts, max(self.counts["paths"], 1)
+        return {**c, "events_per_path": c["events"] / paths, "ended_share": c["ended"] / paths,
+                "capped_share": c["capped"] / paths}
 
     @dr.syntax
     def trace(self, sampler, ray):
@@ -102,6 +125,8 @@ class RandomWalk:
         valid = dr.full(mi.Bool, False, n)
         depth = dr.zeros(mi.UInt32, n)  # bounces on opaque surfaces
         events = dr.zeros(mi.UInt32, n)  # scattering events in media, reflections and refractions at their boundaries
+        scatterings = dr.zeros(mi.UInt32, n)
+        ended = dr.full(mi.Bool, False, n)
         active = dr.full(mi.Bool, True, n)
         while active:
             # Russian roulette on the path's weight, the odds the weight itself (eta^2: radiance's scaling across a
@@ -137,6 +162,7 @@ class RandomWalk:
             scatter = active_medium & ~null
             last_null = null
             events[scatter] += 1
+            scatterings[scatter] += 1
             last_scatter[scatter] = _interaction(mei)
             specular_chain &= ~scatter
             ratios = _update(ratios, null_probability, mei.sigma_n, spectral & null)
@@ -146,6 +172,14 @@ class RandomWalk:
             si.t[null] = si.t - mei.t
             ratios = _update(ratios, 1.0 - null_probability, mei.sigma_s, spectral & scatter)
             ratios = _update(ratios, mei.sigma_t, mei.sigma_s, grey & scatter)
+
+            # ---- deep enough: the channels where diffusion holds end in its field (Eq. W3) ----
+            if dr.hint(self.field is not None, mode="scalar"):
+                ends, scattered = self.field.ending(mei, medium, scatter)
+                ended |= scatter & (dr.max(ends) > 0.0)
+                result[scatter] += _mis(ratios) * scattered
+                ratios = _ended(ratios, ends)
+                scatter &= dr.any(_mis(ratios) != 0.0)
 
             # ---- a scattering vertex: next-event estimation and the phase function ----
             phase_ctx = mi.PhaseFunctionContext(sampler)
@@ -208,6 +242,11 @@ class RandomWalk:
             ratios_nee = _update(ratios_nee, 1.0, bsdf_weight * bs.pdf, solid)
             medium[boundary] = si.target_medium(ray.d)
             active &= active_surface | active_medium
+        dr.eval(result, valid, scatterings, ended, events)
+        self.counts["paths"] += n
+        self.counts["events"] += int(dr.sum(mi.UInt64(scatterings))[0])
+        self.counts["ended"] += int(dr.count(ended)[0])
+        self.counts["capped"] += int(dr.count(events >= MAX_WALK)[0])
         return result, valid
 
     @dr.syntax

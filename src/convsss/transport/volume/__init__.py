@@ -39,11 +39,14 @@ eigenfunction series' within 2.5 % from 60 degrees off the source on, 5 % nearer
 not resolved: the 2 mm slab at a 0.5 mm spacing (7 cells across) transmits too little.
 
 The package: :mod:`.medium` the coefficients on the grid, :mod:`.response` the half-space's response that calibrates
-it, :mod:`.grid` the interior, its system and its deposit and gather, :mod:`.transport` the class.
+it, :mod:`.grid` the interior, its system and its deposit and gather, :mod:`.solve` Eq. D1 solved on it (also the
+field the random walk ends in, :mod:`convsss.pipeline.field`), :mod:`.transport` the class.
 """
 
 from .medium import auto_spacing, coefficients, medium_of
 from .response import half_space_response
-from .transport import RESPONSES, VolumeTransport
+from .solve import DiffusionSolve
+from .transport import OPEN_DEPTH, RESPONSES, VolumeTransport
 
-__all__ = ["RESPONSES", "VolumeTransport", "auto_spacing", "coefficients", "half_space_response", "medium_of"]
+__all__ = ["OPEN_DEPTH", "RESPONSES", "DiffusionSolve", "VolumeTransport", "auto_spacing", "coefficients",
+           "half_space_response", "medium_of"]

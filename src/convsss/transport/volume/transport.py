@@ -6,7 +6,6 @@ import math
 import numpy as np
 
 from ...errors import ConvsssError
-from ...memory import check_memory
 from ...parameters import Parameter
 from ...profiles.base import ScaledProfile
 from ...profiles.tabulated import TabulatedProfile
@@ -14,9 +13,10 @@ from ...samples import IrradianceSamples
 from ..base import Transport, register_transport
 from ..kernels import KernelCache
 from ..multiscale import MultiscaleTransport
-from .grid import BYTES_PER_NODE, Surface, assemble, deposit, gather, grid_shape, multigrid
-from .medium import RESOLVED_LENGTH, auto_spacing, coefficients
+from .grid import BYTES_PER_NODE, grid_shape
+from .medium import auto_spacing, coefficients
 from .response import half_space_response
+from .solve import DiffusionSolve
 
 #: Grid nodes beyond which a spacing is refused outright (long before, the memory guard refuses what does not fit).
 MAX_NODES = 1e12
@@ -89,60 +89,34 @@ class VolumeTransport(Transport):
         _model_of(profile)
         if len(samples) and samples.normal is None:
             raise ConvsssError("the volume transport needs the samples' normals")
-        self.spacing, self.corrected, self._sd = 0.0, np.zeros(3, dtype=bool), np.zeros((0, 0, 0))
-        self.coefficients, self._channels = coefficients(profile, material, 1.0), [(None, None, None)] * 3
+        self.spacing, self.solve = 0.0, None
+        self.coefficients = coefficients(profile, material, 1.0)
         self._half = self._flat = None  # the two sums of Eq. D2, built by the first _build, relit by the others
         if len(samples):  # without samples there is nothing to solve for: Eq. 1 (of nothing)
             self._set_up()
         self._build()
 
+    @property
+    def corrected(self):
+        """Per channel, whether the grid resolves its diffusion length (the channels Eq. D2 corrects)."""
+        return np.zeros(3, dtype=bool) if self.solve is None else self.solve.corrected
+
     def _set_up(self):
-        """The grid, its matrices and multigrid hierarchies and the half-space responses, for the channels whose
-        diffusion length the grid resolves (none: Eq. 1, and no grid is built)."""
+        """The grid, its matrices and multigrid hierarchies (:class:`~.solve.DiffusionSolve`) and the half-space
+        responses, for the channels whose diffusion length the grid resolves (none: Eq. 1, and no grid is built)."""
         view = self._to_view(self.samples.position)
         normal = self._to_view(self.samples.normal, vectors=True)
         lo, hi = view.min(axis=0), view.max(axis=0)
         self.spacing = h = self.spacing_for((lo, hi), self.material, self.params)
-        self.coefficients = k = coefficients(self.profile, self.material, h)
+        self.coefficients = coefficients(self.profile, self.material, h)
         reach = self._reach(h, float(np.linalg.norm(hi - lo)))
-        with np.errstate(divide="ignore"):
-            self.corrected = 1.0 / k.sigma_tr >= RESOLVED_LENGTH * h
         self._view, self._normal = view, normal
+        self.solve = DiffusionSolve(view, normal, self.coefficients, h, self._depth_of_medium(reach),
+                                    self.params["memory_limit"], self.timings, self.memory_advice)
         if not self.corrected.any():
             return
-        with self.timings("domain"):
-            self._surface = Surface(view, normal, h)
-            self._origin, self._sd = self._domain(lo, hi, h, reach)
-        self._channels = []
-        for c in range(3):
-            if not self.corrected[c]:
-                self._channels.append((None, None, None))
-                continue
-            with self.timings("matrix"):
-                matrix, index = assemble(self._sd, k.z_b[c], k.diffusion[c], k.absorption[c], h)
-            with self.timings("multigrid"):
-                solver = multigrid(matrix) if matrix.shape[0] else None
-            self._channels.append((index, k.z_b[c] - self._sd, solver))
         with self.timings("response"):
             self._response = self._half_space(h, reach)
-
-    def _domain(self, lo, hi, h, reach):
-        """The grid's origin and the signed distance at its nodes. Where the samples bound nothing (an open sheet,
-        the grid's border inside), the medium goes on: the grid grows by the response's reach on those sides."""
-        pad = float(np.max(self.coefficients.z_b)) + 2 * h
-        low, high = lo - pad, hi + pad
-        for grown in (False, True):
-            origin, shape = grid_shape(low, high, h, 0.0)
-            check_memory(BYTES_PER_NODE * math.prod(shape), "the volume transport's grid", self.memory_advice,
-                         self.params["memory_limit"])
-            sd = self._surface.signed_distance_on(origin, h, shape, pad + h)
-            inside = sd < pad - 2 * h
-            open_low = np.array([inside.take(0, axis=d).any() for d in range(3)])
-            open_high = np.array([inside.take(-1, axis=d).any() for d in range(3)])
-            if grown or not (open_low.any() or open_high.any()):
-                return origin, sd
-            grow = self._depth_of_medium(reach)
-            low, high = low - grow * open_low, high + grow * open_high
 
     def _reach(self, h, diagonal):
         """How far the half-space response reaches (mm): the profile's reach (:data:`RESPONSE_TAIL`) or the samples'
@@ -173,20 +147,10 @@ class VolumeTransport(Transport):
 
     def _build(self):
         """What depends on the flux: the solves of Eq. D1 and the two sums of Eq. D2."""
-        flux = self.samples.flux
-        held = np.zeros_like(flux)
-        self._fields = []
-        k = self.coefficients
-        for c, (_, _, solver) in enumerate(self._channels):
-            if solver is None:
-                self._fields.append(np.zeros(0))
-                continue
-            with self.timings("sources"):  # each sample's source, k.source_depth inside the boundary (Eq. D5)
-                rhs, has = self._place(c, self._view, self._normal, k.source_depth[c], flux[:, c])
-                held[:, c] = np.where(has, flux[:, c], 0.0)
-            with self.timings("solve"):
-                field = solver.solve(rhs / self.spacing**3, x0=np.zeros_like(rhs), tol=1e-8, accel="cg", maxiter=200)
-                self._fields.append(field)
+        if self.solve is not None:
+            self._fields, held = self.solve.solve(self._view, self._normal, self.samples.flux)
+        else:
+            self._fields, held = [np.zeros(0)] * 3, np.zeros_like(self.samples.flux)
         with self.timings("sums"):  # relit: the sums keep their clusters (the samples' places are the same)
             if self._half is not None:
                 self._half = self._half.relit(self.samples.irradiance)
@@ -198,17 +162,6 @@ class VolumeTransport(Transport):
                                              held / self.samples.area[:, None], self.samples.normal)
             self._flat = MultiscaleTransport(held_samples, self._response, self.frame, **ms) \
                 if self.corrected.any() else None
-
-    def _place(self, c, points, normal, distance, flux=None, field=None):
-        """Channel ``c``'s sources (``flux`` given: returns the right-hand side and which samples are held) or reads
-        (``field`` given: returns the values and which points are held) at ``distance`` inside the extrapolated
-        boundary under surface ``points`` (sources where Eq. D5 puts them, reads at Eq. D4's depths), with
-        :func:`moment_weights`."""
-        index, depth, solver = self._channels[c]
-        at = points - (distance - self.coefficients.z_b[c]) * normal
-        if flux is not None:
-            return deposit(at, flux, self._origin, self.spacing, index, depth, solver.levels[0].A.shape[0])
-        return gather(at, field, self._origin, self.spacing, index, depth)
 
     def _relit(self, samples):
         """The same grid, matrices, multigrid hierarchies and responses; the solves and sums again."""
@@ -222,11 +175,11 @@ class VolumeTransport(Transport):
         correction = -self._flat.exitance(points)
         k = self.coefficients
         with self.timings("read_back"):
-            normal = self._surface.normal_near(view)
-            for c in np.flatnonzero([solver is not None for _, _, solver in self._channels]):
+            normal = self.solve.surface.normal_near(view)
+            for c in np.flatnonzero([solver is not None for _, _, solver in self.solve.channels]):
                 slope, held = 0.0, np.ones(len(view), dtype=bool)
                 for depth, weight in zip(k.read_depths[:, c], k.read_weights[:, c]):  # Eq. D4
-                    value, has = self._place(c, view, normal, depth, field=self._fields[c])
+                    value, has = self.solve.place(c, view, normal, depth, field=self._fields[c])
                     slope, held = slope + weight * value, held & has
                 correction[:, c] += k.beta[c] * k.source_gain[c] * slope
                 correction[~held, c] = 0.0
@@ -236,8 +189,10 @@ class VolumeTransport(Transport):
     def stats(self):
         """The base stats plus the grid's spacing, shape and unknowns per channel, Eq. D4's ``beta``, the corrected
         channels and the two sums' stats."""
-        return {**super().stats, "spacing_mm": self.spacing, "grid": list(self._sd.shape),
-                "unknowns": [0 if index is None else int((index >= 0).sum()) for index, _, _ in self._channels],
+        channels = [(None, None, None)] * 3 if self.solve is None else self.solve.channels
+        return {**super().stats, "spacing_mm": self.spacing,
+                "grid": [0, 0, 0] if self.solve is None else list(self.solve.sd.shape),
+                "unknowns": [0 if index is None else int((index >= 0).sum()) for index, _, _ in channels],
                 "beta": self.coefficients.beta.tolist(), "corrected": self.corrected.tolist(),
                 "sums": [t.stats for t in (self._half, self._flat) if t is not None]}
 

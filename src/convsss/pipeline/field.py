@@ -1,0 +1,160 @@
+"""The diffusion field the random walk ends in, where diffusion holds (:mod:`.walk`).
+
+Deep inside an object of high albedo a walk runs to hundreds of events, and there diffusion is accurate. So each
+object's fluence ``phi`` is solved on its own volume (Eq. D1 of :mod:`convsss.transport.volume`, lit by every
+sample's irradiance: direct, indirect, from the other objects), and a walk that scatters at ``x``, at least
+``walk_depth`` transport mean free paths ``1/sigma_t'`` below the surface, ends there in each channel whose reduced
+albedo is at least :data:`DIFFUSIVE_ALBEDO` and whose diffusion length the grid resolves, adding what the diffusion
+field scatters towards it. Diffuse radiance is ``L(x, w) = phi/(4 pi) + 3/(4 pi) E.w``, ``E = -D grad phi`` (Fick's
+law, ``D = 1/(3 sigma_t')``); scattered by a phase function of mean cosine ``g`` towards ``w_o``:
+
+    L_s(x, w_o) = (phi(x) - (g / sigma_t') grad phi(x) . w_o) / (4 pi).                                    (Eq. W3)
+
+The walk stops at the scattering vertex with its weight times ``L_s`` (its in-scattered radiance): unbiased where
+Eq. W3 is exact, and the channels not ended walk on. A part thinner than twice that depth has no point so deep,
+so thin parts, ears and limbs and every event near the boundary are walked exactly.
+
+The field and the depth below the surface are one Dr.Jit texture per object (trilinear, on the volume transport's
+grid in the camera's view frame): ``depth`` (mm; from the grid's signed distance near the surface, a distance
+transform deeper), ``phi`` and its gradient per channel.
+"""
+
+from dataclasses import dataclass
+
+import drjit as dr
+import numpy as np
+import scipy.ndimage
+
+from ..backend import load_mitsuba
+from .objects import phase_g
+
+mi = load_mitsuba()
+
+#: The least reduced albedo of a channel that a walk may end in the diffusion field (below, diffusion is poor).
+DIFFUSIVE_ALBEDO = 0.8
+
+#: The field's grid: cells per ``walk_depth`` transport mean free paths (its sources, 1.5 cells deep, and a cell to
+#: spare lie above the depth where walks end), and at most this many nodes (a coarser grid ends walks deeper only).
+CELLS_PER_DEPTH = 3.0
+MAX_FIELD_NODES = 2e6
+#: The field's solves stop at this relative residual (the walk's estimate, not a slope read at the surface).
+FIELD_TOLERANCE = 1e-5
+
+
+@dataclass
+class _ObjectField:
+    """One object's field: its medium (what the walk compares), the texture and how to read it."""
+
+    medium: object
+    texture: object
+    origin: np.ndarray  # the grid's first node, view frame (mm)
+    spacing: float
+    shape: tuple  # nodes along the view axes x, y, z
+    frame: object  # ViewFrame, or None: the view frame is the world's
+    mfp: np.ndarray  # 1/sigma_t' per channel (mm)
+    usable: np.ndarray  # the channels a walk may end in
+    shallowest: np.ndarray  # per channel, the least depth the grid's field holds at (mm): below its sources
+    g: float
+
+
+def _depth(sd, spacing):
+    """Depth below the surface at the nodes (mm; < 0 outside) from the grid's signed distance, which is exact within
+    its band and clamped beyond it: deeper, the band plus the distance (a Euclidean transform) to the band."""
+    band = -float(sd.min())
+    deep = sd <= -band
+    if not deep.any():
+        return -sd
+    return np.where(deep, band + spacing * scipy.ndimage.distance_transform_edt(deep), -sd)
+
+
+def _object_field(obj, transport, spacing):
+    """The :class:`_ObjectField` of ``obj`` from its ``transport``'s samples (Eq. D1 solved on a grid of
+    ``spacing`` mm in the transport's view frame), or None when it has no channel to end walks in."""
+    from ..transport.volume import OPEN_DEPTH, DiffusionSolve, coefficients
+
+    samples, frame, material = transport.samples, transport.frame, obj.material
+    view = samples.position if frame is None else frame.to_view(samples.position)
+    normal = samples.normal if frame is None else frame.rotate(samples.normal)
+    k = coefficients(transport.profile, material, spacing)
+    with np.errstate(divide="ignore"):
+        grow = min(OPEN_DEPTH * float(np.max(1.0 / k.sigma_tr)), float(np.linalg.norm(np.ptp(view, axis=0))))
+    solve = DiffusionSolve(view, normal, k, spacing, grow, timings=transport.timings,
+                           advice="give a larger walk_depth, or walk_depth inf", what="the random walk's field")
+    usable = solve.corrected & (material.albedo_prime >= DIFFUSIVE_ALBEDO)
+    if not usable.any():
+        return None
+    fields, _ = solve.solve(view, normal, samples.flux, tol=FIELD_TOLERANCE)
+    phi, sd = solve.fluence(fields), solve.sd
+    gradient = np.stack([np.stack(np.gradient(phi[..., c], spacing), axis=-1) for c in range(3)], axis=-2)
+    data = np.concatenate([_depth(sd, spacing)[..., None], phi, gradient.reshape(*sd.shape, 9)], axis=-1)
+    data = np.ascontiguousarray(np.transpose(data, (2, 1, 0, 3)), dtype=np.float32)  # Texture3f: z, y, x, channel
+    medium = obj.shape.interior_medium()
+    shallowest = k.source_depth - k.z_b + spacing
+    return _ObjectField(mi.MediumPtr(medium), mi.Texture3f(mi.TensorXf(data)), solve.origin, spacing, sd.shape,
+                        frame, 1.0 / material.sigma_t_prime, usable, shallowest, phase_g(mi.traverse(medium)))
+
+
+def field_spacing(bounds_mm, material, walk_depth):
+    """The field's grid spacing (mm): :data:`CELLS_PER_DEPTH` cells per ``walk_depth`` of the shortest transport mean
+    free path, no coarser than the volume transport's own (:func:`~convsss.transport.volume.auto_spacing`), no finer
+    than :data:`MAX_FIELD_NODES` nodes over ``bounds_mm`` allow."""
+    from ..transport.volume import auto_spacing
+
+    lo, hi = np.asarray(bounds_mm, dtype=np.float64)
+    size = np.maximum(hi - lo, 1e-9)
+    finest = float(np.prod(size) / MAX_FIELD_NODES) ** (1.0 / 3.0)
+    wanted = walk_depth * float(np.min(1.0 / material.sigma_t_prime)) / CELLS_PER_DEPTH
+    return max(min(wanted, auto_spacing(material, float(np.max(size)))), finest)
+
+
+def diffusion_field(objects, transports, params):
+    """The fields of ``objects`` (:class:`DiffusionField`) from their ``transports``' samples (their irradiance,
+    profile and view frame); None where ``walk_depth`` is 0 or inf, or no object has a field (a heterogeneous
+    interior has none: its walks go on to their end)."""
+    if not 0.0 < params.walk_depth < np.inf:
+        return None
+    fields = []
+    for obj, transport in zip(objects, transports):
+        if transport is None or obj.classes is not None or not len(transport.samples):
+            continue
+        made = _object_field(obj, transport, field_spacing(obj.bbox_mm, obj.material, params.walk_depth))
+        if made is not None:
+            fields.append(made)
+    return DiffusionField(fields, params.walk_depth, params.unit_mm) if fields else None
+
+
+class DiffusionField:
+    """The objects' fields (module doc) and the rule that ends a walk in them."""
+
+    def __init__(self, fields, walk_depth, unit_mm):
+        self.fields, self.walk_depth, self.unit_mm = fields, float(walk_depth), float(unit_mm)
+
+    def ending(self, mei, medium, scatter):
+        """At the scattering vertices ``mei`` (lanes ``scatter``) in ``medium``: which channels end there (Color3f,
+        1 or 0) and the radiance the field scatters towards ``mei.wi`` (Eq. W3; 0 in the other channels)."""
+        n = dr.width(mei.p)
+        ends = dr.zeros(mi.Color3f, n)
+        radiance = dr.zeros(mi.Color3f, n)
+        for f in self.fields:
+            here = scatter & (medium == f.medium)
+            p = mi.Vector3f(mei.p) * self.unit_mm
+            w = mi.Vector3f(mei.wi)
+            if f.frame is not None:
+                axes = [mi.Vector3f(*np.asarray(a, dtype=np.float64).tolist()) for a in (f.frame.right, f.frame.up,
+                                                                                          f.frame.forward)]
+                p = p - mi.Vector3f(*np.asarray(f.frame.origin, dtype=np.float64).tolist())
+                p = mi.Vector3f(dr.dot(p, axes[0]), dr.dot(p, axes[1]), dr.dot(p, axes[2]))
+                w = mi.Vector3f(dr.dot(w, axes[0]), dr.dot(w, axes[1]), dr.dot(w, axes[2]))
+            node = (p - mi.Vector3f(*f.origin.tolist())) / f.spacing
+            uv = mi.Point3f((node.x + 0.5) / f.shape[0], (node.y + 0.5) / f.shape[1], (node.z + 0.5) / f.shape[2])
+            values = f.texture.eval(uv, here)
+            depth = values[0]
+            for c in range(3):
+                if not f.usable[c]:
+                    continue
+                deep = here & (depth >= max(self.walk_depth * float(f.mfp[c]), float(f.shallowest[c])))
+                slope = values[4 + 3 * c] * w.x + values[5 + 3 * c] * w.y + values[6 + 3 * c] * w.z
+                scattered = dr.maximum(values[1 + c] - f.g * float(f.mfp[c]) * slope, 0.0) / (4.0 * dr.pi)  # Eq. W3
+                ends[c] = dr.select(deep, 1.0, ends[c])
+                radiance[c] = dr.select(deep, scattered, radiance[c])
+        return ends, radiance
