@@ -185,6 +185,13 @@ class RenderSession:
         seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
         return objects, frame, seen, plan_samples(scene, sensor, frame, objects, seen, p)
 
+    @property
+    def walks_alone(self):
+        """Whether the render needs none of stages 2-5: every walk goes to its end (``walk_depth`` inf) and no AOV
+        asks for the transports' exitance or the samples' irradiance."""
+        return self.params.walk_depth == float("inf") and not {"exitance", "irradiance"} & set(
+            parse_aovs(self.params.aovs))
+
     def _attach(self, tracer, transports, screen, diffusion=None):
         """``tracer`` reads ``transports``, ``screen`` and the ``diffusion`` field from now on; the AOVs read the
         tracer."""
@@ -205,6 +212,15 @@ class RenderSession:
         cells = [q.pixel_footprint_mm for q in plan.objects]
         per_object = [{**obj.summary(), **q.summary(obj.area_mm2)} for obj, q in zip(shown, plan.objects)]
         tracer = PathTracer(scene, shown, p, stop=self.stop)
+        if self.walks_alone:  # the walk reaches every interior itself: no samples, irradiance or transports
+            self._attach(tracer, [None] * len(shown), None)
+            self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object,
+                          "hidden": list(plan.hidden), "samples": 0, "translucent_passes": 0,
+                          "screen_exitance": {"usable": False, "queries": 0}}
+            self.prepared = PreparedState(scene, sensor, as_seed(seed), frame, shown, shown_at, cells, None,
+                                          [None] * len(shown), survey=(objects, frame, seen, plan),
+                                          params=p.to_dict(), fingerprint=fingerprint)
+            return self.tracer
         lighting = light_samples(scene, objects, plan, p, as_seed(seed), tracer, stage, self.stop)
         transports = build_transports(lighting.samples, lighting.irradiance, shown, cells, frame, p, stage)
         transports, from_translucent, passes = translucent_passes(transports, lighting, tracer, p.indirect_passes,
@@ -261,10 +277,12 @@ class RenderSession:
         objects, _, seen, plan = survey
         state.visible = [seen[q.index] for q in plan.objects]
         with timer("screen"):
-            screen = ScreenExitance(sensor, state.objects, state.visible, state.transports, self.params.unit_mm)
+            screen = None if state.lighting is None else ScreenExitance(sensor, state.objects, state.visible,
+                                                                         state.transports, self.params.unit_mm)
         self._attach(self.tracer, state.transports, screen, state.diffusion)
         state.survey, state.fingerprint = survey, fingerprint
-        self.stats.update(seconds=dict(timer), screen_exitance={"usable": screen.usable, "queries": screen.queries})
+        self.stats.update(seconds=dict(timer), screen_exitance={"usable": screen is not None and screen.usable,
+                                                                "queries": 0 if screen is None else screen.queries})
         return ["irradiance", "indirect", "transport"]
 
     def retransport(self, objects=None, params=None):
@@ -302,6 +320,8 @@ class RenderSession:
         if params is not None:
             self._check_same_samples(params)
             self.params = params
+        if state.lighting is None:  # prepared for walks alone: the stages it skipped, now
+            return self.reprepare(objects)
         p = self.params
         if not all(keeps_irradiance(old.material, new.material, p.incidence, p.orders)
                    for new, old in zip(objects, state.objects)):  # the same eta: only the albedo can differ
