@@ -346,7 +346,8 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     target, mask = _checked_images(target, mask, width, height)
     named = scene.integrator()
     params = named.params.to_dict() if isinstance(named, ConvsssIntegrator) else {}
-    integrator = mi.load_dict({"type": "convsss", **params})
+    # The transport's render: the trial materials reach it (the random walk reads the scene's medium instead).
+    integrator = mi.load_dict({"type": "convsss", **params, "walk_depth": 0.0})
     name = _object_to_fit(find_translucent_objects(mi, scene, integrator.params.unit_mm), object, fit_eta)
     forward = Forward(scene, integrator, sensor, 0, seed, spp)
     integrator.prepare(scene, sensor, seed)

@@ -222,6 +222,57 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, out_file, as_js
     click.echo(json.dumps(result, indent=1) if as_json else volpath_table(result))
 
 
+@bench.command("walk")
+@click.option("--scene", "scenes", multiple=True,
+              type=click.Choice(["skin40-back", "armadillo30-area", "milk4", "ketchup20", "marble40-area"]),
+              help="A scene (repeat for several) [default: all]: the 40 mm skin1 bunny lit from behind, a 30 mm skin1 "
+                   "armadillo behind a smooth dielectric under an area light, a 4 mm whole-milk bunny, a 20 mm "
+                   "ketchup bunny (null boundary, the key and back lights) and a 40 mm marble bunny behind a "
+                   "dielectric under an area light.")
+@click.option("--width", type=click.IntRange(16, 4096), default=64, show_default=True,
+              help="Image width and height (square).")
+@click.option("--spp", type=click.IntRange(1), default=64, show_default=True,
+              help="Samples per pixel of the walks and of volpathmis beside them.")
+@click.option("--reference-spp", type=click.IntRange(1), default=1024, show_default=True,
+              help="Samples per pixel of the two references (seeds 1 and 2).")
+@click.option("--depths", default="0,2,4,8,16,inf", show_default=True,
+              help="The walk depths, comma-separated (transport mean free paths; 0: the transport alone, inf: "
+                   "every walk to its end).")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Also draw bias and seconds against the depth, a line per scene, to this PNG.")
+@click.option("-o", "--output", "out_file", type=click.Path(dir_okay=False),
+              help="Also write the result as JSON to this file.")
+@click.option("--json", "as_json", is_flag=True, help="Print {meta, scenes} as JSON instead of the table.")
+@PROGRESS
+def bench_walk_command(scenes, width, spp, reference_spp, depths, plot_path, out_file, as_json, progress):
+    """How deep a walk should go: per scene, convsss render at each --depths (fresh processes), against two
+    volpathmis references, with volpathmis at the same spp beside them.
+
+    Prints per scene and depth the mean over the object against the reference per channel (the references' own
+    ratio on the first line), the relative MSE less the reference's noise, the command's seconds, the walk's mean
+    scattering events per path and the share of paths ended in the diffusion field.
+    """
+    import math
+
+    from ..bench.walk import WALK_SCENES, bench_walk, walk_plot, walk_table
+    from ..errors import ConvsssError
+
+    try:
+        values = tuple(float(v) for v in depths.split(","))
+    except ValueError:
+        raise ConvsssError(f"--depths {depths!r}: give numbers >= 0 or inf, e.g. 0,4,inf") from None
+    if not values or any(math.isnan(v) or v < 0 for v in values):
+        raise ConvsssError(f"--depths {depths!r}: give numbers >= 0 or inf, e.g. 0,4,inf")
+    result = bench_walk(scenes or tuple(WALK_SCENES), width, spp, reference_spp, values, progress)
+    if out_file:
+        from ..files import atomic_write
+
+        atomic_write(out_file, lambda tmp: Path(tmp).write_text(json.dumps(result, indent=1, default=str)))
+    if plot_path:
+        walk_plot(result, plot_path)
+    click.echo(json.dumps(result, indent=1, default=str) if as_json else walk_table(result))
+
+
 @bench.command("battery")
 @click.option("--json", "as_json", is_flag=True, help="Print the rows as JSON instead of the table.")
 @PROGRESS

@@ -125,6 +125,8 @@ class EditSession:
         self.spp = int(spp) if spp else int(self.sensor.sampler().sample_count())
         if params is None:
             params = RenderParams(**(scene_parameters(scene) or {}))
+        # Edits render with the transport (the random walk reads the scene's medium, not the edited material).
+        params = RenderParams(**{**params.to_dict(), "walk_depth": 0.0})
         self.integrator = self.mi.load_dict(params.integrator_dict())
         self.lock = threading.RLock()  # edits and reads from the server's threads, one at a time
         self.version = 0

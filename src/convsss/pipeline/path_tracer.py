@@ -156,7 +156,7 @@ class PathTracer:
         #: Up to this many emitters, direct light samples each of them (else one chosen by the scene).
         self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
         #: With ``walk_depth`` > 0, the camera's paths walk through the objects' media (:mod:`.walk`).
-        self.walk = RandomWalk(scene, params) if params.walk_depth > 0 else None
+        self.walk = RandomWalk(scene, params, self.classify) if params.walk_depth > 0 else None
         self.attach([None] * len(objects))
 
     def attach(self, transports, screen=None, field=None):

@@ -20,6 +20,14 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   directions, as in ``volpathmis``);
 * at a boundary, the scene's BSDF: a smooth or rough dielectric refracts out or reflects back in, a null one lets
   the path through into the next medium;
+* a delta light (point, spot, directional) behind a translucent object's dielectric boundary, which no path can
+  reach (``volpathmis`` renders it black), lights a scattering vertex along the straight shadow ray, which crosses
+  the boundary at cosine ``mu`` outside and ``mu'`` inside with
+
+      F_t(eta, mu) mu / mu'                                                                              (Eq. W4)
+
+  (the Fresnel transmittance and the beam's compression of Eq. S2, :mod:`.path_tracer`; the bending of the ray is
+  not followed: exact for a vertex on the normal through the crossing, an approximation elsewhere);
 * Russian roulette on the path's weight from ``rr_depth`` (not at albedo ~1 inside a medium, where it would only add
   fireflies: there the roulette's survival odds are the weight itself, capped at 1), ``max_depth`` surface bounces
   and at most :data:`MAX_WALK` scattering events inside media.
@@ -28,6 +36,7 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
 import drjit as dr
 
 from ..backend import load_mitsuba
+from .irradiance import fresnel_transmittance, refracted_cosine
 
 mi = load_mitsuba()
 
@@ -83,8 +92,8 @@ def _interaction(source):
 class RandomWalk:
     """The volumetric paths of one scene (module doc); :meth:`trace` gives their radiance."""
 
-    def __init__(self, scene, params):
-        self.scene = scene
+    def __init__(self, scene, params, classify):
+        self.scene, self.classify = scene, classify
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         self.rr_depth = params.rr_depth
         #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.
@@ -304,9 +313,17 @@ class RandomWalk:
             si[intersect] = scene.ray_intersect(ray, intersect)
             active_surface |= escaped
             total[active_surface] += si.t
+            inside = active_surface & (medium != None)  # noqa: E711 (leaving a medium here)
             active_surface &= si.is_valid() & active & ~active_medium
             bsdf = si.bsdf(ray)
             passed = bsdf.eval_null_transmission(si, active_surface)
+            # A delta light through a translucent object's dielectric boundary, which no path can reach: straight
+            # through, times the Fresnel transmittance and the beam's compression (Eq. W4).
+            which, eta = self.classify(si)
+            through = inside & active_surface & ds.delta & (which >= 0) & (dr.max(passed) == 0.0)
+            cos_out = dr.abs(dr.dot(si.n, ray.d))
+            refracted = dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
+            passed[through] = fresnel_transmittance(eta, cos_out) * cos_out / refracted
             with_nee = _update(with_nee, 1.0, passed, active_surface)
             with_uni = _update(with_uni, 1.0, passed, active_surface)
             ray[active_surface] = si.spawn_ray(ray.d)

@@ -1,0 +1,51 @@
+"""The diffusion field the random walk ends in (convsss.pipeline.field): walks ended in it keep the render's mean
+(against volpathmis, and against walks to the end), end where they should, and a point light behind a dielectric,
+which no walk reaches, stays lit (Eq. W4) as the transport lights it where diffusion is right."""
+
+import numpy as np
+import pytest
+
+from convsss.pipeline.reference import reference_integrator, translucent_pixels
+
+RES, SPP = 32, 128
+
+
+def _area_light(mi, radius):
+    return {"light": {"type": "rectangle",
+                      "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [4.0] * 3}},
+                      "to_world": mi.ScalarTransform4f().look_at(origin=[0, 3 * radius, 4 * radius], target=[0, 0, 0],
+                                                                 up=[0, 1, 0]).scale(1.5 * radius)}}
+
+
+def _render(mi, scene, integrator, seeds):
+    return [np.array(mi.render(scene, integrator=integrator, spp=SPP, seed=s), dtype=np.float64)[..., :3]
+            for s in seeds]
+
+
+@pytest.mark.slow
+def test_walks_ended_in_the_field_keep_the_mean_of_volpathmis_and_are_shorter(mi, sphere_scene):
+    scene = mi.load_dict(sphere_scene(material="wholemilk", radius=5.0, boundary="null", res=RES,
+                                      emitters=_area_light(mi, 5.0)))
+    inside = translucent_pixels(scene)
+    truth = np.mean([image[inside].mean(axis=0) for image in _render(mi, scene, reference_integrator(), (1, 2))],
+                    axis=0)
+    ended = mi.load_dict({"type": "convsss", "walk_depth": 4.0, "max_depth": -1})
+    ours = np.mean([image[inside].mean(axis=0) for image in _render(mi, scene, ended, (3, 4))], axis=0)
+    walk = ended.stats["walk"]
+    full = mi.load_dict({"type": "convsss", "walk_depth": float("inf"), "max_depth": -1})
+    _render(mi, scene, full, (5,))
+    assert np.all(np.abs(ours / truth - 1.0) < 0.03), ours / truth
+    assert walk["ended_share"] > 0.01 and walk["capped_share"] == 0.0
+    assert walk["events_per_path"] < 0.8 * full.stats["walk"]["events_per_path"]
+
+
+@pytest.mark.slow
+def test_a_point_light_behind_a_dielectric_stays_lit_as_the_transport_lights_it(mi, sphere_scene):
+    """A large sphere of high albedo (diffusion right there) under a point light, behind a smooth dielectric: the
+    walk, which cannot reach the light through the boundary, renders it through Eq. W4 and the field as the
+    transport's render does."""
+    scene = mi.load_dict(sphere_scene(material="marble", radius=20.0, boundary="dielectric", res=RES))
+    inside = translucent_pixels(scene)
+    transport = _render(mi, scene, mi.load_dict({"type": "convsss"}), (1,))[0][inside].mean(axis=0)
+    walked = _render(mi, scene, mi.load_dict({"type": "convsss", "walk_depth": 4.0}), (2,))[0][inside].mean(axis=0)
+    assert np.all(np.abs(walked / transport - 1.0) < 0.05), walked / transport
