@@ -49,3 +49,39 @@ def test_a_point_light_behind_a_dielectric_stays_lit_as_the_transport_lights_it(
     transport = _render(mi, scene, mi.load_dict({"type": "convsss"}), (1,))[0][inside].mean(axis=0)
     walked = _render(mi, scene, mi.load_dict({"type": "convsss", "walk_depth": 4.0}), (2,))[0][inside].mean(axis=0)
     assert np.all(np.abs(walked / transport - 1.0) < 0.05), walked / transport
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("material", ["marble", "wholemilk"])
+def test_the_fluence_deep_inside_is_what_walks_from_there_find(mi, material):
+    """Deep inside a 10 mm sphere (5-7 mm, 12-20 transport mean free paths) under an environment, the field's
+    fluence against 4 pi times the mean radiance that walks to their end bring to the point (every direction)."""
+    import drjit as dr
+
+    import convsss
+    from convsss.pipeline.walk import RandomWalk
+    from convsss.scene.materials import translucent
+
+    radius, T = 10.0, mi.ScalarTransform4f
+    scene = mi.load_dict({"type": "scene", "environment": {"type": "constant"},
+                          "sensor": {"type": "perspective", "fov": 30, "film": {"type": "hdrfilm", "width": 32,
+                                                                                  "height": 32},
+                                     "to_world": T().look_at(origin=[0, 20, 80], target=[0, 0, 0], up=[0, 1, 0])},
+                          "object": translucent({"type": "sphere", "radius": radius}, convsss.material(material),
+                                                boundary="null")})
+    integrator = mi.load_dict({"type": "convsss", "walk_depth": 2.0})
+    integrator.prepare(scene, scene.sensors()[0], 0)
+    tracer = integrator.session.tracer
+    points = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, -3.0, 3.0], [-2.0, 3.5, -1.0]])
+    depth, fluence = tracer.walk.field.fluence(0, points)
+    assert np.all(depth > 5.0)
+    walk = RandomWalk(scene, tracer.params, tracer.classify)  # no field: every walk to its end
+    found = []
+    for k, point in enumerate(points):
+        sampler = mi.load_dict({"type": "independent"})
+        sampler.seed(k, 1 << 14)
+        direction = mi.warp.square_to_uniform_sphere(sampler.next_2d())
+        radiance, _ = walk.trace(sampler, mi.Ray3f(mi.Point3f(*point.tolist()), direction),
+                                 scene.shapes()[0].interior_medium())
+        found.append(4.0 * np.pi * dr.ravel(radiance).numpy().reshape(-1, 3).mean(axis=0))
+    assert np.all(np.abs(fluence.mean(axis=0) / np.mean(found, axis=0) - 1.0) < 0.03)

@@ -137,24 +137,42 @@ class DiffusionField:
         radiance = dr.zeros(mi.Color3f, n)
         for f in self.fields:
             here = scatter & (medium == f.medium)
-            p = mi.Vector3f(mei.p) * self.unit_mm
-            w = mi.Vector3f(mei.wi)
-            if f.frame is not None:
-                axes = [mi.Vector3f(*np.asarray(a, dtype=np.float64).tolist()) for a in (f.frame.right, f.frame.up,
-                                                                                          f.frame.forward)]
-                p = p - mi.Vector3f(*np.asarray(f.frame.origin, dtype=np.float64).tolist())
-                p = mi.Vector3f(dr.dot(p, axes[0]), dr.dot(p, axes[1]), dr.dot(p, axes[2]))
-                w = mi.Vector3f(dr.dot(w, axes[0]), dr.dot(w, axes[1]), dr.dot(w, axes[2]))
-            node = (p - mi.Vector3f(*f.origin.tolist())) / f.spacing
-            uv = mi.Point3f((node.x + 0.5) / f.shape[0], (node.y + 0.5) / f.shape[1], (node.z + 0.5) / f.shape[2])
-            values = f.texture.eval(uv, here)
-            depth = values[0]
+            depth, phi, gradient, w = self._read(f, mei.p, mei.wi, here)
             for c in range(3):
                 if not f.usable[c]:
                     continue
                 deep = here & (depth >= max(self.walk_depth * float(f.mfp[c]), float(f.shallowest[c])))
-                slope = values[4 + 3 * c] * w.x + values[5 + 3 * c] * w.y + values[6 + 3 * c] * w.z
-                scattered = dr.maximum(values[1 + c] - f.g * float(f.mfp[c]) * slope, 0.0) / (4.0 * dr.pi)  # Eq. W3
+                slope = dr.dot(gradient[c], w)
+                scattered = dr.maximum(phi[c] - f.g * float(f.mfp[c]) * slope, 0.0) / (4.0 * dr.pi)  # Eq. W3
                 ends[c] = dr.select(deep, 1.0, ends[c])
                 radiance[c] = dr.select(deep, scattered, radiance[c])
         return ends, radiance
+
+    def fluence(self, index, points):
+        """Object ``index``'s (in the order of the fields) depth below the surface (K,) and fluence (K, 3) at world
+        ``points`` (K, 3; scene units), numpy: what the walks read."""
+        f = self.fields[index]
+        p = mi.Point3f(*np.ascontiguousarray(np.asarray(points, dtype=np.float32).T))
+        depth, phi, _, _ = self._read(f, p, dr.zeros(mi.Vector3f, len(points)), True)
+        return depth.numpy().astype(np.float64), _to_numpy3(phi)
+
+    def _read(self, f, points, directions, active):
+        """Field ``f`` at world ``points`` (scene units): depth (mm), fluence (Color3f), its gradient per channel
+        (three Vector3f, view frame, per mm), and ``directions`` in the view frame."""
+        p = mi.Vector3f(points) * self.unit_mm
+        w = mi.Vector3f(directions)
+        if f.frame is not None:
+            axes = [mi.Vector3f(*np.asarray(a, dtype=np.float64).tolist()) for a in (f.frame.right, f.frame.up,
+                                                                                      f.frame.forward)]
+            p = p - mi.Vector3f(*np.asarray(f.frame.origin, dtype=np.float64).tolist())
+            p = mi.Vector3f(dr.dot(p, axes[0]), dr.dot(p, axes[1]), dr.dot(p, axes[2]))
+            w = mi.Vector3f(dr.dot(w, axes[0]), dr.dot(w, axes[1]), dr.dot(w, axes[2]))
+        node = (p - mi.Vector3f(*f.origin.tolist())) / f.spacing
+        uv = mi.Point3f((node.x + 0.5) / f.shape[0], (node.y + 0.5) / f.shape[1], (node.z + 0.5) / f.shape[2])
+        values = f.texture.eval(uv, active)
+        gradient = [mi.Vector3f(values[4 + 3 * c], values[5 + 3 * c], values[6 + 3 * c]) for c in range(3)]
+        return values[0], mi.Color3f(values[1], values[2], values[3]), gradient, w
+
+
+def _to_numpy3(v):
+    return dr.ravel(v).numpy().reshape(-1, 3).astype(np.float64)

@@ -116,16 +116,18 @@ class RandomWalk:
                 "capped_share": c["capped"] / paths}
 
     @dr.syntax
-    def trace(self, sampler, ray):
-        """Radiance (mi.Color3f) and first-hit mask (mi.Bool) of camera rays ``ray``, drawing from ``sampler``."""
+    def trace(self, sampler, ray, medium=None):
+        """Radiance (mi.Color3f) and first-hit mask (mi.Bool) of rays ``ray`` (camera rays, or rays from points in
+        ``medium``, a Mitsuba medium they start in), drawing from ``sampler``."""
         scene = self.scene
-        n = dr.width(ray.o)
+        n = dr.width(ray)
         ray = mi.Ray3f(ray)
+        start = dr.zeros(mi.MediumPtr, n) if medium is None else dr.full(mi.MediumPtr, medium, n)
         channel = dr.minimum(mi.UInt32(sampler.next_1d() * 3.0), 2)
         result = dr.zeros(mi.Color3f, n)
         ratios, ratios_nee = _ones(n), _ones(n)
         eta = dr.full(mi.Float, 1.0, n)
-        medium = dr.zeros(mi.MediumPtr, n)
+        medium = mi.MediumPtr(start)
         si = dr.zeros(mi.SurfaceInteraction3f, n)
         last_scatter = dr.zeros(mi.Interaction3f, n)
         last_null = dr.full(mi.Bool, False, n)
