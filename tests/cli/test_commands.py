@@ -485,6 +485,15 @@ def test_ctrl_c_ends_render_in_one_line_without_outputs(tmp_path, stage):
 
 
 @pytest.mark.slow
+def test_ctrl_c_ends_a_render_of_long_walks(tmp_path):
+    """SIGINT during random walks to their end in a 100 mm marble bunny, a render of minutes in one kernel: the walks
+    run in chunks of camera paths, so it stops within the 60 s _interrupt waits (it took 50 s in one kernel)."""
+    _interrupt(["render", "--mesh", "bunny", "--material", "marble", "--size-mm", "100", "--boundary", "null",
+                "--width", "200", "--height", "200", "--spp", "2048", "--walk-depth", "inf",
+                "-o", str(tmp_path / "out" / "img")], tmp_path, "shading", wait=3.0)
+
+
+@pytest.mark.slow
 def test_sigterm_ends_render_as_ctrl_c_does(tmp_path):
     """SIGTERM once the shading starts (issue 30, defect 7: it had left hidden temporaries and exit 143 without a
     word): one line, exit 143, no file."""

@@ -94,3 +94,25 @@ def test_plans_draw_alike_within_the_rounding_of_a_crop_windows_rays():
         assert not plan.draws_like(SamplingPlan((other,), ()))
     assert not plan.draws_like(SamplingPlan((one,), ("hidden",)))
     assert not plan.draws_like(SamplingPlan((), ()))
+
+
+def test_the_walks_field_is_planned_and_refused_before_any_sample(mi, monkeypatch):
+    """The random walk's diffusion field (walk_depth between 0 and inf) is in the plan's bytes; under a budget that
+    holds the transport but not the field, the render is refused in one line naming it, before any sample."""
+    from convsss.errors import ConvsssError
+    from convsss.memory import set_budget
+
+    plain = _bunny(mi, "marble", 40.0)
+    walked = _bunny(mi, "marble", 40.0, walk_depth=1.0)
+    (without,) = plain.integrator().session.survey(plain, plain.sensors()[0])[3].objects
+    (with_field,) = walked.integrator().session.survey(walked, walked.sensors()[0])[3].objects
+    assert with_field.transport_bytes > without.transport_bytes + 2**28  # a fine grid, up to 2e6 nodes
+    from convsss.memory import resident_memory
+
+    _no_sampling(monkeypatch)
+    set_budget((resident_memory() or 0) + without.transport_bytes + 2**26 + 2 * with_field.samples * 200)
+    try:
+        with pytest.raises(ConvsssError, match="walk_depth 1's field"):
+            convsss.render(walked)
+    finally:
+        set_budget(None)

@@ -37,6 +37,9 @@ DIFFUSIVE_ALBEDO = 0.8
 #: spare lie above the depth where walks end), and at most this many nodes (a coarser grid ends walks deeper only).
 CELLS_PER_DEPTH = 3.0
 MAX_FIELD_NODES = 2e6
+#: Bytes per node of the field beyond the solve's (:data:`~convsss.transport.volume.grid.BYTES_PER_NODE`): the fluence
+#: and gradient (12 float64), the texture's data before and after its float32 copy (13 float64 + 13 float32).
+FIELD_BYTES_PER_NODE = 12 * 8 + 13 * 8 + 13 * 4
 #: The field's solves stop at this relative residual (the walk's estimate, not a slope read at the surface).
 FIELD_TOLERANCE = 1e-5
 
@@ -105,6 +108,19 @@ def field_spacing(bounds_mm, material, walk_depth):
     finest = float(np.prod(size) / MAX_FIELD_NODES) ** (1.0 / 3.0)
     wanted = walk_depth * float(np.min(1.0 / material.sigma_t_prime)) / CELLS_PER_DEPTH
     return max(min(wanted, auto_spacing(material, float(np.max(size)))), finest)
+
+
+def planned_bytes(obj, params):
+    """The bytes ``obj``'s field will hold (its grid's system and solver, the fluence, gradient and texture), 0
+    where ``walk_depth`` makes none: for the plan's memory check, before any work."""
+    from ..transport.volume.grid import BYTES_PER_NODE
+
+    if not 0.0 < params.walk_depth < np.inf or obj.classes is not None:
+        return 0
+    lo, hi = np.asarray(obj.bbox_mm, dtype=np.float64)
+    h = field_spacing(obj.bbox_mm, obj.material, params.walk_depth)
+    nodes = float(np.prod(np.floor((hi - lo) / h) + 8))  # the domain's padding: z_b and two cells a side, about
+    return int(nodes * (BYTES_PER_NODE + FIELD_BYTES_PER_NODE))
 
 
 def diffusion_field(objects, transports, params):

@@ -9,6 +9,7 @@ in :attr:`ConvsssIntegrator.stats`.
 """
 
 import functools
+import math
 import threading
 import warnings
 
@@ -29,7 +30,7 @@ from .params import (
     plugin_parameters,
 )
 from .plan import check_film
-from .session import RenderSession, as_seed
+from .session import RenderSession, as_seed, pass_seed
 
 mi = load_mitsuba()
 #: The variant this module's classes were built in (a Mitsuba class belongs to one variant).
@@ -39,6 +40,8 @@ VARIANT = mi.variant()
 #: One render stage at a time in a process: an integrator's prepared state and the thread count the shading sets in
 #: Dr.Jit are shared, so a second thread waits for the first (two threads rendering one scene at once failed).
 RENDER_LOCK = threading.RLock()
+#: Camera paths per kernel of random walks (:meth:`ConvsssIntegrator._shade`): Ctrl-C waits for at most one.
+WALK_LANES = 1 << 20
 
 
 def _one_at_a_time(method):
@@ -241,8 +244,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             # on one thread, in lane order, so the image is bit-identical whatever the thread count; the shading
             # (sample) runs on all threads.
             with timer("shading"), mitsuba_render(), ordered_kernels() as self._threads:
-                image = mi.SamplingIntegrator.render(self, scene, sensor, seed, spp, develop, evaluate)
-                dr.eval(image)
+                image = self._shade(scene, sensor, seed, spp_used, develop, evaluate, tracer.walk is not None)
         finally:
             self._nested = False
         if self.should_stop():  # Mitsuba's SIGINT handler cancelled the render: no partial image leaves here
@@ -256,6 +258,25 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         if tracer.walk is not None:
             self.stats["walk"] = tracer.walk.stats
         return image
+
+    def _shade(self, scene, sensor, seed, spp, develop, evaluate, walks):
+        """Mitsuba's render loop over the camera rays; with random ``walks`` (one kernel each, as long as its
+        longest walk) in chunks of about :data:`WALK_LANES` paths, each of its own seed (:func:`~.session.pass_seed`)
+        so that Ctrl-C stops between them: the image is their mean."""
+        chunk = max(1, WALK_LANES // math.prod(sensor.film().crop_size())) if walks and develop else spp
+        if chunk >= spp:
+            image = mi.SamplingIntegrator.render(self, scene, sensor, seed, spp, develop, evaluate)
+            dr.eval(image)
+            return image
+        total, done = None, 0
+        while done < spp and not self.should_stop():
+            share = min(chunk, spp - done)
+            part = mi.SamplingIntegrator.render(self, scene, sensor, pass_seed(seed, done // chunk), share, develop,
+                                                evaluate)
+            total = part * share if total is None else total + part * share
+            dr.eval(total)
+            done += share
+        return total / done
 
     def sample(self, scene, sampler, ray, medium=None, active=True):
         session = self.session

@@ -183,6 +183,13 @@ def _check_outside(obj, visible):
                            "objects seen from outside; move the camera out of it")
 
 
+def field_bytes(obj, params):
+    """The bytes of ``obj``'s diffusion field for the random walk (:func:`~.field.planned_bytes`)."""
+    from .field import planned_bytes
+
+    return planned_bytes(obj, params)
+
+
 def plan_object(scene, sensor, frame, obj, visible, index, params):
     """The :class:`ObjectPlan` of one visible object, or a one-line error when its samples or its transport would
     not fit in memory, or its irradiance would take too long."""
@@ -213,9 +220,12 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
     held = sum(transport.planned_bytes(bounds, profile, count, held_params, material)
                for profile, material in zip(obj.profiles, obj.materials))
     held *= PARTS_PER_CLASS if obj.classes is not None else 1  # Eq. H1: each class's transports
-    check_memory(count * BYTES_PER_SAMPLE + held,
-                 f"{count} surface samples of {obj.name!r} ({_span(obj, p.unit_mm)}) and its {p.transport} transport",
-                 transport.memory_advice)
+    field = field_bytes(obj, p)  # the random walk's diffusion field
+    check_memory(count * BYTES_PER_SAMPLE + held + field,
+                 f"{count} surface samples of {obj.name!r} ({_span(obj, p.unit_mm)}) and its {p.transport} transport"
+                 + (f" and walk_depth {p.walk_depth:g}'s field" if field else ""),
+                 transport.memory_advice + (", or a larger walk_depth (a coarser field)" if field else ""))
+    held += field
     check_irradiance_time(scene, count, obj.name, p)
     return ObjectPlan(index, footprint, cell, depth, count, count_pixel, wanted, profile_area, bounds, held)
 
