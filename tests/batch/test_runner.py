@@ -148,3 +148,32 @@ def test_jobs_go_to_a_running_scheduler(tmp_path):
         assert cluster.status.name == "running"
     with pytest.raises(Exception, match="no Dask scheduler answers at tcp://127.0.0.1:9"):
         run_batch(batch, tmp_path / "none", scheduler="tcp://127.0.0.1:9", echo=_quiet, progress=False)
+
+
+def test_a_bad_scheduler_address_or_folder_is_one_line_before_any_work(tmp_path):
+    from convsss.batch.runner import check_scheduler, make_folder
+    from convsss.errors import ConvsssError
+
+    for address in ("http://[bad", "tcp://[bad", "tcp://host"):
+        with pytest.raises(ConvsssError, match="is not a Dask scheduler's address"):
+            check_scheduler(address)
+    check_scheduler("tcp://127.0.0.1:8786")
+    with pytest.raises(ConvsssError, match="cannot make the folder '/proc/x'"):
+        make_folder("/proc/x")
+    assert make_folder(tmp_path / "a" / "b").is_dir()
+
+
+def test_a_listener_that_is_no_scheduler_is_given_up_on(monkeypatch):
+    """Something listens but never answers Dask's handshake (issue 51: 150 s without a word): a one-line error."""
+    import socket
+
+    from convsss.batch import runner
+    from convsss.errors import ConvsssError
+
+    monkeypatch.setattr(runner, "CONNECT_SECONDS", 2)
+    with socket.socket() as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(1)
+        port = listener.getsockname()[1]
+        with pytest.raises(ConvsssError, match="within 2 s"):
+            runner._connect(f"tcp://127.0.0.1:{port}")

@@ -26,6 +26,8 @@ from .spec import keywords
 
 #: A job's complete marker, written last in its folder.
 DONE = "job.json"
+#: Seconds a scheduler has to answer before the batch gives up on it.
+CONNECT_SECONDS = 20
 
 
 def job_folder(out, job):
@@ -98,6 +100,63 @@ def write_manifest(out, batch, records):
     atomic_write(out / "manifest.csv", lambda tmp: Path(tmp).write_text(text.getvalue()))
 
 
+def check_scheduler(address):
+    """A one-line :class:`ConvsssError` unless ``address`` reads as a Dask scheduler's (``tcp://HOST:PORT``, or
+    another of Dask's schemes with a host and port): before any work, not a traceback from the connection."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import get_backend
+
+    try:
+        scheme, location = parse_address(address)
+        get_backend(scheme)
+        if scheme != "inproc":
+            host, port = parse_host_port(location)
+            if not host or port is None:
+                raise ValueError("no port")
+    except (ValueError, TypeError) as error:
+        raise ConvsssError(f"--scheduler {address!r} is not a Dask scheduler's address ({error}): give "
+                           "tcp://HOST:PORT") from None
+
+
+def _connect(scheduler):
+    """A Dask client of the scheduler at ``scheduler``, or a one-line :class:`ConvsssError` within
+    :data:`CONNECT_SECONDS` (Dask's own timeout does not end a handshake that a listener of another kind never
+    answers)."""
+    import threading
+
+    from distributed import Client
+
+    check_scheduler(scheduler)
+    result = {}
+
+    def connect():
+        try:
+            result["client"] = Client(scheduler, timeout="10s")
+        except Exception as error:  # handed back to the caller, one line
+            result["error"] = error
+
+    thread = threading.Thread(target=connect, name="convsss-dask-connect", daemon=True)
+    thread.start()
+    thread.join(CONNECT_SECONDS)
+    if thread.is_alive():
+        raise ConvsssError(f"no Dask scheduler answers at {scheduler} within {CONNECT_SECONDS} s (something listens "
+                           "there, but not a Dask scheduler?)")
+    if "error" in result:
+        error = result["error"]
+        raise ConvsssError(f"no Dask scheduler answers at {scheduler}: {' '.join(str(error).split())}")
+    return result["client"]
+
+
+def make_folder(out):
+    """The batch's folder made (with its parents), or a one-line :class:`ConvsssError` saying why it cannot be."""
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise ConvsssError(f"cannot make the folder {str(out)!r}: {error.strerror or error}") from None
+    return out
+
+
 @contextlib.contextmanager
 def _cluster(scheduler, workers, retries):
     """A Dask client, closed on leaving: to ``scheduler``, or to a new local cluster of ``workers`` processes (one
@@ -108,10 +167,7 @@ def _cluster(scheduler, workers, retries):
     dask.config.set({"distributed.scheduler.allowed-failures": retries,
                      "distributed.worker.daemon": False, "distributed.admin.tick.limit": "1h"})
     if scheduler:
-        try:
-            client = Client(scheduler, timeout="10s")
-        except OSError as error:
-            raise ConvsssError(f"no Dask scheduler answers at {scheduler}: {error}") from None
+        client = _connect(scheduler)
         with client:
             yield client
         return
@@ -163,8 +219,7 @@ def run_batch(batch, out, scheduler=None, workers=None, retries=3, job_function=
 
     ``job_function(command, job_id, keywords, folder)`` runs one job in a worker (:func:`run_job`; a test may give its
     own). Ctrl-C cancels what is left and writes the manifest of what finished before it re-raises."""
-    out = Path(out).resolve()  # the workers' own working folder is not ours
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(Path(out).resolve())  # the workers' own working folder is not ours
     records = {}
     for job in batch.jobs:
         done = completed(out, job)

@@ -50,7 +50,10 @@ def batch(spec, out, workers, scheduler, retries, max_jobs, dry_run, progress):
       convsss batch examples/sweep.toml -o out/sweep --workers 2
     """
     from ..batch import SpecError, contact_sheet, read_spec, run_batch, turntables
+    from ..batch.runner import check_scheduler, make_folder
 
+    if scheduler:
+        check_scheduler(scheduler)
     try:
         plan = read_spec(spec, max_jobs)
     except SpecError as error:
@@ -62,6 +65,7 @@ def batch(spec, out, workers, scheduler, retries, max_jobs, dry_run, progress):
             click.echo(f"{job.id}: convsss {plan.command} {shlex.join(_shown(plan, job))}")
         click.echo(f"{len(plan.jobs)} jobs")
         return
+    make_folder(out)
     records = run_batch(plan, out, scheduler, workers, retries, echo=lambda text: click.echo(text, err=True),
                         progress=progress)
     sheet = contact_sheet(plan, records, Path(out) / "contact_sheet.png")

@@ -47,6 +47,10 @@ def figures(quick, resolution, only, out_dir, workers, scheduler, progress):
     from ..figures.run import select
 
     names = select(only)
+    if scheduler:
+        from ..batch.runner import check_scheduler
+
+        check_scheduler(scheduler)
     check_outputs([Path(out_dir) / "report.md", Path(out_dir) / "figures.json"])
     settings = QUICK if quick else FULL
     if resolution is not None:
