@@ -9,11 +9,13 @@ from convsss.editor.server import EditorServer, check_loopback
 from convsss.errors import ConvsssError
 
 
-def _request(server, method, path, body=None, host=None):
+def _request(server, method, path, body=None, host=None, raw=None):
     port = server.server_address[1]
     connection = http.client.HTTPConnection("127.0.0.1", port, timeout=120)
     headers = {"Content-Type": "application/json"}
-    if host:
+    if raw is not None:
+        connection.request(method, path, raw, headers)
+    elif host:
         connection.putrequest(method, path, skip_host=True)
         connection.putheader("Host", host)
         data = json.dumps(body).encode() if body is not None else b""
@@ -50,6 +52,12 @@ def test_bad_requests(editor_server):
     # DNS rebinding: a request that names another host is refused.
     assert _request(editor_server, "GET", "/api/state", host="evil.example:80")[0] == 403
     assert _request(editor_server, "GET", "/api/state", host="localhost:1")[0] == 200
+    # A Host that is not one host and port (issue 51: accepted), and a bare IPv6 loopback (refused).
+    assert _request(editor_server, "GET", "/api/state", host="127.0.0.1:80@evil.example")[0] == 403
+    assert _request(editor_server, "GET", "/api/state", host="[::1]")[0] == 200
+    # JSON nested deeper than the parser goes (issue 51: a 500 with Python's RecursionError): a 400 of one line.
+    status, _, body = _request(editor_server, "POST", "/api/update", raw=b"[" * 5000 + b"]" * 5000)
+    assert status == 400 and "nested" in json.loads(body)["error"]
 
 
 @pytest.mark.parametrize("host", ["0.0.0.0", "", "192.168.1.2", "::"])

@@ -17,6 +17,7 @@ when sent, must be the editor's own page: a page elsewhere cannot drive it with 
 
 import http.server
 import json
+import re
 import socketserver
 from importlib import resources
 
@@ -24,6 +25,21 @@ from ..errors import ConvsssError
 
 #: Hosts the server may bind and that requests may name.
 LOOPBACK = ("127.0.0.1", "::1", "localhost")
+#: A ``Host`` header: a name or IPv4 address, or an IPv6 address in brackets, then an optional port; nothing else.
+HOST = re.compile(r"\[([0-9A-Fa-f:.]+)\](?::\d{1,5})?|([A-Za-z0-9.-]+)(?::\d{1,5})?")
+
+
+def host_name(header):
+    """The host a ``Host`` header names (an IPv6 address without its brackets), or None when the header is not one
+    host and port (``127.0.0.1:80@evil.example`` is not).
+
+    >>> host_name("[::1]:8123"), host_name("[::1]"), host_name("localhost"), host_name("127.0.0.1:80@evil.example")
+    ('::1', '::1', 'localhost', None)
+    """
+    found = HOST.fullmatch(header.strip())
+    return None if found is None else found.group(1) or found.group(2)
+
+
 #: Seconds a connection may take to send its request.
 TIMEOUT = 10.0
 #: The largest update body, in bytes (an edit is a few hundred).
@@ -64,7 +80,7 @@ class EditorHandler(http.server.BaseHTTPRequestHandler):
         self._send(status, json.dumps(value).encode(), "application/json")
 
     def _local(self):
-        host = (self.headers.get("Host") or "").rsplit(":", 1)[0].strip("[]")
+        host = host_name(self.headers.get("Host") or "")
         if host not in LOOPBACK:
             self._json(403, {"error": f"requests must name a loopback host, not {host!r}"})
             return False
@@ -123,7 +139,10 @@ class EditorHandler(http.server.BaseHTTPRequestHandler):
             body = self._body()
             if body is None:
                 return
-            changes = json.loads(body or b"{}")
+            try:
+                changes = json.loads(body or b"{}")
+            except RecursionError:  # nested deeper than Python's parser goes: no edit is
+                raise ConvsssError("an update is a JSON object of changes, not nested thousands deep") from None
             if not isinstance(changes, dict):
                 raise ConvsssError("an update is a JSON object of changes")
             self._json(200, self.server.session.update(**changes))
