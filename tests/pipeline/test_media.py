@@ -133,6 +133,23 @@ def test_bad_coefficients_are_refused(mi, tmp_path, value, words):
     assert words in message and "'s'" in message and "\n" not in message
 
 
+def test_a_nan_albedo_over_a_constant_extinction_is_refused_in_one_line(mi, tmp_path):
+    """Issue 51: an IndexError inside the check (a constvolume's coefficients came back once, not per point)."""
+    values = np.full((8, 8, 8, 3), 0.9)
+    values[3, 3, 3, 0] = np.nan
+    volume = _volume(mi, _grid(mi, tmp_path / "albedo.vol", values))
+    sigma_t = {"type": "constvolume", "value": {"type": "rgb", "value": [0.5] * 3}, "to_world": volume["to_world"]}
+    with pytest.raises(ConvsssError, match="not finite in channel R"):
+        find_translucent_objects(mi, mi.load_dict(_sphere(mi, volume, sigma_t, 5.0)))
+
+
+def test_a_constant_extinction_without_a_box_is_refused_saying_why(mi):
+    """Issue 51: Mitsuba takes the medium's box from sigma_t, and a constvolume's is the unit cube: say so."""
+    constant = {"type": "constvolume", "value": {"type": "rgb", "value": [0.5] * 3}}
+    with pytest.raises(ConvsssError, match="does not cover the object.*constvolume's is the unit cube.*homogeneous"):
+        find_translucent_objects(mi, mi.load_dict(_sphere(mi, constant, constant, 5.0)))
+
+
 def test_a_tabulated_profile_of_a_varying_medium_is_refused(mi, tmp_path):
     skin, marble = convsss.material("skin1"), convsss.material("marble")
     grid = _grid(mi, tmp_path / "albedo.vol", _halves(skin, marble))

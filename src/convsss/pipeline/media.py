@@ -97,7 +97,9 @@ class MediumField:
         mei.p = mi.Point3f(*points)
         mei.medium = mi.MediumPtr(self.medium)
         sigma_s, _, sigma_t = self.medium.get_scattering_coefficients(mei, True)
-        return tuple(np.asarray(a, dtype=np.float64).reshape(3, -1).T for a in (sigma_s, sigma_t))
+        # A constant volume's value comes back once, not per point: broadcast to every point.
+        return tuple(np.broadcast_to(np.asarray(a, dtype=np.float64).reshape(3, -1).T, (points.shape[1], 3))
+                     for a in (sigma_s, sigma_t))
 
     def _stored(self, name):
         """The (3,) value of volume ``name`` (``albedo``, ``sigma_t``) where Mitsuba exposes it and it is the same
@@ -216,9 +218,16 @@ class MediumField:
         outside = ~self.inside(points_mm)
         if outside.any():
             at = np.round(np.asarray(points_mm)[np.argmax(outside)] / self.unit_mm, 4).tolist()
+            import mitsuba as mi
+
+            why = (" (Mitsuba takes a heterogeneous medium's box from its sigma_t volume, and a constvolume's is the "
+                   "unit cube at the origin unless it has a to_world: give sigma_t a to_world that holds the shape, "
+                   "or write a homogeneous medium where both are constant)"
+                   if "sigma_t.value.value" in mi.traverse(self.medium) else
+                   ": give the volumes a to_world that holds the whole shape")
             raise ConvsssError(f"translucent shape {self.name!r}: its heterogeneous medium's volume does not cover "
                                f"the object ({int(outside.sum())} of {len(outside)} surface points outside it, e.g. "
-                               f"{at} in scene units): give the volumes a to_world that holds the whole shape")
+                               f"{at} in scene units){why}")
 
     def check_values(self, points_mm):
         """A one-line error where the coefficients at ``points_mm`` (N, 3) are not finite, negative or scatter more
