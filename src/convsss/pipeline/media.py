@@ -218,12 +218,10 @@ class MediumField:
         outside = ~self.inside(points_mm)
         if outside.any():
             at = np.round(np.asarray(points_mm)[np.argmax(outside)] / self.unit_mm, 4).tolist()
-            import mitsuba as mi
-
             why = (" (Mitsuba takes a heterogeneous medium's box from its sigma_t volume, and a constvolume's is the "
                    "unit cube at the origin unless it has a to_world: give sigma_t a to_world that holds the shape, "
                    "or write a homogeneous medium where both are constant)"
-                   if "sigma_t.value.value" in mi.traverse(self.medium) else
+                   if "sigma_t = ConstVolume" in str(self.medium) else
                    ": give the volumes a to_world that holds the whole shape")
             raise ConvsssError(f"translucent shape {self.name!r}: its heterogeneous medium's volume does not cover "
                                f"the object ({int(outside.sum())} of {len(outside)} surface points outside it, e.g. "
