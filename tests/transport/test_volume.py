@@ -14,6 +14,7 @@ from convsss.samples import IrradianceSamples, ViewFrame
 from convsss.transport import make_transport
 from convsss.transport.volume import coefficients, half_space_response
 from convsss.transport.volume.response import _thomas
+from convsss.transport.volume.transport import VolumeWarning
 
 FRAME = ViewFrame.look_at(origin=[0, 0, 50], target=[0, 0, 0])
 
@@ -219,11 +220,20 @@ def test_no_samples_or_no_resolved_channel_is_eq1():
     assert np.array_equal(make_transport("volume", empty, skin, FRAME, material("skin1")).exitance(np.zeros((2, 3))),
                           np.zeros((2, 3)))
     slab = _slab(2.0, half_width=4.0)
-    coarse = make_transport("volume", slab, skin, FRAME, material("skin1"), spacing=2.0)
+    with pytest.warns(VolumeWarning, match="resolves no channel's diffusion length"):  # issue 51: silently
+        coarse = make_transport("volume", slab, skin, FRAME, material("skin1"), spacing=2.0)
     assert not coarse.corrected.any() and coarse.stats["unknowns"] == [0, 0, 0]
     points = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, -2.0]])
     np.testing.assert_array_equal(coarse.exitance(points),
                                   make_transport("multiscale", slab, skin, FRAME).exitance(points))
+
+
+def test_an_object_a_few_mean_free_paths_across_warns():
+    """Issue 51: 1.22-1.34 times path tracing on objects of a few mean free paths, without a word; a 2 mm milk
+    sphere (about 5 transport mean free paths) warns, and names the walk."""
+    milk = material("wholemilk")
+    with pytest.warns(VolumeWarning, match="mean free paths across.*walk_depth inf"):
+        make_transport("volume", _sphere(1.0, np.ones((4000, 3))), model_profile("dipole", milk), FRAME, milk)
 
 
 def test_a_spacing_far_too_fine_is_refused_in_one_line_by_the_plan():

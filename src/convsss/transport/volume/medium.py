@@ -82,13 +82,14 @@ def coefficients(profile, material, h):
     sigma_t_prime = dipole.sigma_s_prime + dipole.sigma_a
     diffusion = 1.0 / (3.0 * sigma_t_prime)
     sigma_tr = np.asarray(dipole.sigma_tr, dtype=np.float64)
-    absorption = (2.0 * diffusion / h**2) * (np.cosh(sigma_tr * h) - 1.0)  # Eq. D3
+    with np.errstate(over="ignore"):  # a spacing of many diffusion lengths: no channel is solved (RESOLVED_LENGTH)
+        absorption = (2.0 * diffusion / h**2) * (np.cosh(sigma_tr * h) - 1.0)  # Eq. D3
     own = np.asarray(dipole.total_reflectance, dtype=np.float64)
     scale = np.divide(np.asarray(profile.total_reflectance, dtype=np.float64), own, out=np.zeros(3), where=own > 0)
     z_b = 2.0 * dipole.A * diffusion
 
     def g(d):
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             return np.where(sigma_tr * d > 1e-8, np.sinh(sigma_tr * d) / np.where(sigma_tr > 0, sigma_tr, 1.0), d)
 
     source_depth = np.maximum(dipole.z_r + z_b, 1.5 * h)  # Eq. D5
