@@ -247,3 +247,17 @@ def test_a_spacing_far_too_fine_is_refused_in_one_line_by_the_plan():
     with pytest.raises(ConvsssError, match="would hold .* nodes") as info:
         VolumeTransport.planned_bytes(bounds, skin, 1000, {"spacing": 1e-300}, material("skin1"))
     assert "\n" not in str(info.value)
+
+
+def test_an_object_far_under_a_mean_free_path_plans_a_small_grid_and_builds():
+    """Issue 51: a 0.002 mm object 'needed 81063.9 GiB' (a grid of its boundary layer at extent / 64); the spacing is
+    no finer than a quarter mean free path, and the half-space response holds its sources."""
+    from convsss.transport.volume import VolumeTransport
+
+    milk = material("wholemilk")
+    profile = model_profile("dipole", milk)
+    bounds = np.array([[0.0, 0.0, 0.0], [0.002, 0.002, 0.002]])
+    assert VolumeTransport.planned_bytes(bounds, profile, 100, {}, milk) < 2**30
+    with pytest.warns(VolumeWarning):
+        tiny = make_transport("volume", _sphere(0.001, np.ones((200, 3))), profile, FRAME, milk)
+    assert np.all(np.isfinite(tiny.exitance(np.zeros((1, 3)))))

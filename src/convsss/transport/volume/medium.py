@@ -105,8 +105,11 @@ def coefficients(profile, material, h):
 
 def auto_spacing(material, extent):
     """The grid spacing (mm) for an object of largest ``extent`` (mm): half the shortest diffusion length (the far
-    field's scale), within [extent / 64, extent / 24]."""
+    field's scale), within [extent / 64, extent / 24], and no finer than a quarter of the shortest transport mean free
+    path (an object far smaller than one, where diffusion means nothing, would otherwise ask a grid of its boundary
+    layer's thousands of cells a side)."""
     dipole = medium_of(material)
     with np.errstate(divide="ignore"):
         length = float(np.min(1.0 / dipole.sigma_tr))
-    return float(np.clip(0.5 * length, extent / 64.0, extent / 24.0))
+    mfp = float(np.min(1.0 / (dipole.sigma_s_prime + dipole.sigma_a)))
+    return max(float(np.clip(0.5 * length, extent / 64.0, extent / 24.0)), 0.25 * mfp)

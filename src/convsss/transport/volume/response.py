@@ -55,7 +55,7 @@ def half_space_response(diffusion, sigma_a, source_depth, read_depths, read_weig
     Fourier mode is a tridiagonal system in depth: the same rows as the object's matrix for a boundary parallel to
     a grid plane, solved exactly."""
     n_lat = 2 * int(math.ceil(reach / h)) + 8
-    n_z = int(math.ceil((reach + max(read_depths)) / h)) + 4
+    n_z = int(math.ceil(max(reach + max(read_depths), source_depth + 2.0 * h) / h)) + 4  # the source within it
     m = np.fft.fftfreq(n_lat)
     lam = (4.0 / h**2) * (np.sin(np.pi * m)[:, None] ** 2 + np.sin(np.pi * m)[None, :] ** 2)
     link = diffusion / h**2
