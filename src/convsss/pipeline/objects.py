@@ -286,12 +286,15 @@ def _check_span(obj, unit_mm):
 
 
 def check_lights_outside(mi, scene, objects, unit_mm):
-    """A one-line error for a point or spot light inside a closed translucent object: the diffusion model lights an
-    object through its surface from outside (it would render the object black). Inside is decided by the parity of
-    the object's surface crossings along a ray from the light."""
+    """A one-line error for a point, spot or area light inside a closed translucent object: the diffusion model
+    lights an object through its surface from outside (it would render the object black, or ignore an area light).
+    Inside is decided by the parity of the object's surface crossings along a ray from the light (an area light's
+    shape: from the centre of its bounding box)."""
     for emitter in scene.emitters():
         params = mi.traverse(emitter)
-        if "position" in params:
+        if emitter.get_shape() is not None:
+            position = np.asarray(emitter.get_shape().bbox().center(), dtype=np.float64).reshape(-1)[:3]
+        elif "position" in params:
             position = np.asarray(params["position"], dtype=np.float64).reshape(-1)[:3]
         elif emitter.class_name() == "SpotLight" and "to_world" in params:
             position = np.asarray(params["to_world"].matrix, dtype=np.float64).reshape(4, 4)[:3, 3]
@@ -310,9 +313,10 @@ def check_lights_outside(mi, scene, objects, unit_mm):
                 crossings += bool(obj.hit(*(a.numpy() for a in hit_indices(mi, si)))[0])
                 ray = si.spawn_ray(ray.d)
             if crossings % 2 == 1:
-                raise ConvsssError(f"light {emitter.id()!r} is inside translucent shape {obj.name!r}: the diffusion "
+                name = emitter.get_shape().id() if emitter.get_shape() is not None else emitter.id()
+                raise ConvsssError(f"light {name!r} is inside translucent shape {obj.name!r}: the diffusion "
                                    "model lights objects through their surface from outside; move the light out, or "
-                                   "render the scene with `convsss reference`")
+                                   "render the scene with --walk-depth inf (random walks) or `convsss reference`")
 
 
 def check_named_media(mi, scene):
@@ -457,8 +461,10 @@ def world_area(shape, to_world):
     return float(np.sum(area.numpy(), dtype=np.float64))
 
 
-def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_TOTAL, orders=Orders.ALL):
-    """Every translucent shape of ``scene`` as a :class:`TranslucentObject`; a one-line error when there is none.
+def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_TOTAL, orders=Orders.ALL,
+                             lights_inside=False):
+    """Every translucent shape of ``scene`` as a :class:`TranslucentObject`; a one-line error when there is none,
+    and for a light inside one (:func:`check_lights_outside`) unless ``lights_inside`` (walks to their end reach it).
 
     ``profile`` is the renderer's ``profile`` parameter (:func:`~convsss.profiles.models.parse_profile_spec`): a
     model or CSV for every object, or per object by its name (the shape's id; ``instance/shape`` for an instance,
@@ -516,7 +522,8 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
     if not objects:
         raise ConvsssError("the scene has no translucent shape: give a shape an interior 'homogeneous' medium and a "
                            "null, dielectric or roughdielectric BSDF")
-    check_lights_outside(mi, scene, objects, unit_mm)
+    if not lights_inside:
+        check_lights_outside(mi, scene, objects, unit_mm)
     names = {o.name for o in objects} | {o.name.split("/")[0] for o in objects}
     unknown = sorted(set(per_object) - names)
     if unknown:

@@ -179,7 +179,8 @@ class RenderSession:
         """What the camera sees, whatever the seed: the translucent objects, the view frame, each object's points
         seen through the pixel centres, and the sampling plan (one-line errors before anything is drawn)."""
         p = self.params
-        objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders)
+        objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders,
+                                           lights_inside=p.walk_depth == float("inf"))
         check_camera(sensor)
         frame = sensor_frame(sensor, p.unit_mm)
         seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
