@@ -32,3 +32,29 @@ def test_point_light_behind_a_dielectric_warns_black(mi, sphere_scene):
     with warnings.catch_warnings():
         warnings.simplefilter("error", BlackPassWarning)
         assert render_reference(lit, spp=1, pass_spp=1)[translucent_pixels(lit)].any()
+
+
+def test_a_pixel_mitsuba_writes_nan_is_left_out_of_its_mean_with_one_warning(mi, sphere_scene, monkeypatch):
+    """Issue 51: volpathmis wrote NaN pixels on a heterogeneous medium, and the ground truth carried them without a
+    word. A pass's NaN pixel is the mean of its finite passes; a warning says how many."""
+    import types
+
+    from convsss.pipeline import reference
+
+    scene = mi.load_dict(sphere_scene(res=8))
+    passes = []
+
+    def render(*args, **kwargs):
+        image = np.array(mi.render(*args, **kwargs))
+        if len(passes) == 1:
+            image[2, 3, 1] = np.nan
+        passes.append(image[..., :3].astype(np.float64))
+        return image
+
+    proxy = types.SimpleNamespace(**{name: getattr(mi, name) for name in ("load_dict", "UInt32")}, render=render)
+    monkeypatch.setattr(reference, "load_mitsuba", lambda: proxy)
+    with pytest.warns(reference.NonFiniteWarning, match="1 pixel"):
+        image = render_reference(scene, spp=3, pass_spp=1, seed=1)
+    assert np.all(np.isfinite(image))
+    np.testing.assert_allclose(image[2, 3], (passes[0][2, 3] + passes[2][2, 3]) / 2)
+    np.testing.assert_allclose(image[0, 0], (passes[0][0, 0] + passes[1][0, 0] + passes[2][0, 0]) / 3)

@@ -28,6 +28,10 @@ class BlackPassWarning(UserWarning):
     """A ``volpathmis`` pass is black over every pixel where the camera sees a translucent object."""
 
 
+class NonFiniteWarning(UserWarning):
+    """``volpathmis`` wrote pixels that are not finite (left out of their pixel's mean)."""
+
+
 def translucent_pixels(scene, sensor=0):
     """(H, W) bool over the sensor's crop window: pixels whose centre ray first hits a shape with an interior medium.
 
@@ -94,7 +98,7 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None, sensor=0):
     integrator = reference_integrator()
     n_passes = math.ceil(spp / pass_spp)
     objects = translucent_pixels(scene, sensor)
-    total, done, warned = None, 0, False
+    total, weight, done, warned, broken = None, None, 0, False, 0
     for k in range(n_passes):
         this = min(pass_spp, spp - done)
         with mitsuba_render(integrator):  # Ctrl-C: no partial pass is averaged in
@@ -106,11 +110,24 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None, sensor=0):
                           "where the camera sees a translucent object: a path tracer cannot reach a point light "
                           "through a smooth dielectric; use a null boundary with point lights, or area or "
                           "environment lights", BlackPassWarning, stacklevel=2)
+        finite = np.all(np.isfinite(image), axis=-1, keepdims=True)  # a pixel Mitsuba wrote NaN or inf into
+        broken += int((~finite).sum())
+        image = np.where(finite, image, 0.0)
         total = image * this if total is None else total + image * this
+        weight = finite * this if weight is None else weight + finite * this
         done += this
         if on_pass is not None:
-            on_pass(total / done, done, k, n_passes)
-    return total / done
+            on_pass(_mean(total, weight), done, k, n_passes)
+    if broken:
+        warnings.warn(f"volpathmis wrote {broken} pixel(s) that are not finite over {n_passes} passes (its spectral "
+                      "MIS does on some heterogeneous media): each is the mean of its finite passes (0 where none "
+                      "was)", NonFiniteWarning, stacklevel=2)
+    return _mean(total, weight)
+
+
+def _mean(total, weight):
+    """Each pixel's mean over the passes where it was finite (``weight``: their samples), 0 where none was."""
+    return np.divide(total, weight, out=np.zeros_like(total), where=weight > 0)
 
 
 def volpath_slab_albedo(material, occluder_mm=0.0, spp=1 << 16, seed=0):
