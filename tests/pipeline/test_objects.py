@@ -242,3 +242,21 @@ def test_an_object_at_infinity_is_refused_without_numpy_warnings(mi, scale):
         warnings.simplefilter("error", RuntimeWarning)
         with pytest.raises(ConvsssError, match="reaches infinity"):
             _objects(mi, {"s": translucent({"type": "sphere", "to_world": t}, skin)})
+
+
+def test_overlapping_objects_warn_and_touching_ones_do_not(mi):
+    """Issue 51: overlapping translucent objects were neither refused nor warned (0.78 of path tracing)."""
+    from convsss.pipeline.objects import OverlapWarning
+
+    skin = convsss.material("skin1")
+    T = mi.ScalarTransform4f
+
+    def two(offset):
+        return {"a": translucent({"type": "sphere", "radius": 1.0}, skin),
+                "b": translucent({"type": "sphere", "radius": 1.0, "to_world": T().translate([offset, 0, 0])}, skin)}
+
+    with pytest.warns(OverlapWarning, match="'a' and 'b' overlap"):
+        _objects(mi, two(1.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", OverlapWarning)
+        assert len(_objects(mi, two(2.05))) == 2

@@ -319,6 +319,56 @@ def check_lights_outside(mi, scene, objects, unit_mm):
                                    "render the scene with --walk-depth inf (random walks) or `convsss reference`")
 
 
+class OverlapWarning(UserWarning):
+    """Two translucent objects overlap: each is rendered as if the other were not there."""
+
+
+#: Surface points of each object tested inside the others (:func:`warn_overlaps`).
+OVERLAP_POINTS = 64
+
+
+def _inside(mi, scene, obj, points):
+    """Which of ``points`` (K, 3; scene units) lie inside the closed object ``obj``: the parity of its surface's
+    crossings along a ray from each (other shapes crossed on the way are stepped over)."""
+    import drjit as dr
+
+    ray = mi.Ray3f(mi.Point3f(*np.ascontiguousarray(np.asarray(points, dtype=np.float32).T)),
+                   dr.normalize(mi.Vector3f(0.5773503, 0.6123724, 0.5400617)))
+    crossings = np.zeros(len(points), dtype=np.int64)
+    active = dr.full(mi.Bool, True, len(points))
+    for _ in range(1000):
+        si = scene.ray_intersect(ray, active)
+        active &= si.is_valid()
+        if not dr.any(active):
+            break
+        crossings += np.asarray(obj.hit(*(a.numpy() for a in hit_indices(mi, si)))) & active.numpy()
+        ray = si.spawn_ray(ray.d)
+    return crossings % 2 == 1
+
+
+def warn_overlaps(mi, scene, objects):
+    """Warn (:class:`OverlapWarning`) for each pair of closed translucent objects where surface points of one lie
+    inside the other: each is rendered as its own medium in vacuum, where light crosses both (measured 0.78 of path
+    tracing, issue 51)."""
+    from .surface import sample_surface
+
+    closed = [o for o in objects if o.closed]
+    for k, a in enumerate(closed):
+        for b in closed[k + 1:]:
+            if np.any(a.bbox_mm[1] < b.bbox_mm[0]) or np.any(b.bbox_mm[1] < a.bbox_mm[0]):
+                continue
+            for one, other in ((a, b), (b, a)):
+                position, _, _ = sample_surface(one.shape, OVERLAP_POINTS, seed=0, to_world=one.to_world)
+                points = np.asarray(position, dtype=np.float64).reshape(3, -1).T
+                share = float(np.mean(_inside(mi, scene, other, points)))
+                if share > 0.02:
+                    warnings.warn(f"translucent shapes {one.name!r} and {other.name!r} overlap ({share:.0%} of "
+                                  f"{one.name!r}'s surface inside {other.name!r}): each is rendered as if the other "
+                                  "were not there; make their volumes disjoint (a shared face: one shape between the "
+                                  "two media)", OverlapWarning, stacklevel=3)
+                    break
+
+
 def check_named_media(mi, scene):
     """:func:`~convsss.scene.presets.check_boundary` (without units) for every shape of ``scene`` whose interior is a
     ``convsss_medium``; what ``convsss reference`` and :func:`~convsss.scene.loading.load_scene` check."""
@@ -524,6 +574,7 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
                            "null, dielectric or roughdielectric BSDF")
     if not lights_inside:
         check_lights_outside(mi, scene, objects, unit_mm)
+    warn_overlaps(mi, scene, objects)
     names = {o.name for o in objects} | {o.name.split("/")[0] for o in objects}
     unknown = sorted(set(per_object) - names)
     if unknown:
