@@ -11,7 +11,9 @@ demo: setup
 		--spp 16 -o out/demo/bunny --stats out/demo/bunny.json
 	@echo "demo image: $(CURDIR)/out/demo/bunny.png (linear: out/demo/bunny.exr, timings: out/demo/bunny.json)"
 
-test: setup
+# Everything, the editor's page driven in Chromium among it (setup installs Debian's chromium when missing).
+test:
+	@bash scripts/setup.sh --browser
 	.venv/bin/python -m pytest -q
 
 # The fast loop: every test but those marked slow (renders over a second, subprocesses, Ctrl-C, the battery's matrix,

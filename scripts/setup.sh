@@ -3,7 +3,9 @@
 #  1. a virtual environment with the package, its dependencies and the dev tools at the versions pinned in
 #     constraints.txt (pyproject.toml states compatible ranges), and the pinned build tools (setuptools, wheel), so
 #     `.venv/bin/pip wheel --no-build-isolation .` works as well as the default isolated build;
-#  2. a libLLVM >= 17 for Dr.Jit's CPU backend: `apt-get install libllvm19` when the package finds none.
+#  2. a libLLVM >= 17 for Dr.Jit's CPU backend: `apt-get install libllvm19` when the package finds none;
+#  3. with --browser (what `make test` asks): Debian's `chromium` for the editor's browser test, when missing
+#     (Playwright drives it; no browser is downloaded).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,4 +30,12 @@ if ! .venv/bin/python -c "from convsss.llvm import find_libllvm; find_libllvm()"
     $SUDO apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 >/dev/null
     .venv/bin/python -c "from convsss.llvm import find_libllvm; print('convsss setup: using', find_libllvm())"
+fi
+
+if [ "${1:-}" = "--browser" ] && ! command -v chromium >/dev/null 2>&1; then
+    echo "convsss setup: installing Debian's chromium with apt (the editor's browser test)"
+    SUDO=""
+    [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
 fi
