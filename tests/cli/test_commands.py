@@ -665,6 +665,32 @@ def test_edit_on_a_busy_port_is_refused_before_the_first_render(tmp_path):
     assert "rendering the first preview" not in result.output
 
 
+@pytest.mark.slow
+def test_ctrl_c_ends_the_editor_after_an_edit():
+    """Issue 51: after one edit (a render in a request's thread, which lets Mitsuba install its own SIGINT handler)
+    Ctrl-C only wound renders down and the server kept serving; now it ends, exit 130, in one line."""
+    import http.client
+    import re
+
+    proc = subprocess.Popen([sys.executable, "-m", "convsss", "edit", "--mesh", "bunny", "--material", "marble",
+                             "--size-mm", "20", "--width", "32", "--height", "32", "--port", "0", "--no-open"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": _src_path()})
+    try:
+        line = proc.stdout.readline()
+        port = int(re.search(r"http://127\.0\.0\.1:(\d+)/", line).group(1))
+        connection = http.client.HTTPConnection("127.0.0.1", port, timeout=120)
+        connection.request("POST", "/api/update", json.dumps({"sigma_a": [0.2, 0.2, 0.2]}),
+                           {"Content-Type": "application/json"})
+        assert connection.getresponse().status == 200
+        time.sleep(1.0)  # serve_forever's loop turns (0.5 s) between requests
+        proc.send_signal(signal.SIGINT)
+        stderr = proc.communicate(timeout=30)[1]
+    finally:
+        proc.kill()
+    assert proc.returncode == 130 and "Traceback" not in stderr and stderr.rstrip().endswith("interrupted"), stderr
+
+
 def test_an_output_name_that_is_not_utf8_is_refused_before_any_work(tmp_path):
     name = os.fsdecode(bytes(tmp_path / "x") + b"\xff")  # what Python makes of a non-UTF-8 argument
     result = run("render", "--mesh", "bunny", "--material", "marble", "--size-mm", 20, "-o", name, "--no-progress")

@@ -18,7 +18,9 @@ when sent, must be the editor's own page: a page elsewhere cannot drive it with 
 import http.server
 import json
 import re
+import signal
 import socketserver
+import threading
 from importlib import resources
 
 from ..errors import ConvsssError
@@ -165,11 +167,21 @@ class EditorServer(socketserver.ThreadingMixIn, socketserver.TCPServer):
 
         self.address_family = socket.AF_INET6 if ":" in check_loopback(host) else socket.AF_INET
         self.session = session
+        #: Python's Ctrl-C handler when the server was made (in the main thread), put back between requests.
+        self._sigint = signal.getsignal(signal.SIGINT) if threading.current_thread() is threading.main_thread() \
+            else None
         try:
             super().__init__((host, int(port)), EditorHandler)
         except OSError as error:
             raise ConvsssError(f"cannot serve the editor on {host} port {port}: {error.strerror or error} (--port 0 "
                                "picks a free one)") from None
+
+    def service_actions(self):
+        """Between requests (``serve_forever``'s loop, in the thread that serves): Python's Ctrl-C handler back in
+        place. A render in a request's thread lets Mitsuba install its own, which only winds renders down: the
+        server had kept serving through Ctrl-C after the first edit (issue 51)."""
+        if self._sigint is not None and threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, self._sigint)
 
     @property
     def url(self):
