@@ -177,3 +177,18 @@ def test_a_listener_that_is_no_scheduler_is_given_up_on(monkeypatch):
         port = listener.getsockname()[1]
         with pytest.raises(ConvsssError, match="within 2 s"):
             runner._connect(f"tcp://127.0.0.1:{port}")
+
+
+def test_a_jobs_warnings_go_to_its_record_not_the_workers_stderr(tmp_path):
+    """Issue 51: a worker printed Python's warning format (file, line, source) beside the manifest's one line."""
+    import warnings
+
+    from convsss.batch.spec import keywords
+
+    batch = batch_from_spec({"scene": {**SPEC["scene"], "material": "ketchup", "width": 8, "height": 8}})
+    job = batch.jobs[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # none escapes the job
+        record = run_job(batch.command, job.id, keywords(batch.command, job.options), tmp_path / job.id)
+    assert any("not optically thick" in w for w in record["warnings"])
+    assert all("\n" not in w for w in record["warnings"])

@@ -18,6 +18,7 @@ import io
 import json
 import os
 import time
+import warnings
 from pathlib import Path
 
 from ..errors import ConvsssError
@@ -37,7 +38,8 @@ def job_folder(out, job):
 def run_job(command, job_id, keywords, folder):
     """Run one job in this process: :func:`~convsss.outputs.render_to_files` (``command`` ``render``, with its stats)
     or :func:`~convsss.outputs.reference_to_files` of ``keywords`` (:func:`~.spec.keywords`) to ``FOLDER/image``;
-    returns its record (``seconds``: the render's stages and ``total``; ``outputs``), also written to
+    returns its record (``seconds``: the render's stages and ``total``; ``outputs``; ``warnings``, each once, one
+    line), also written to
     ``FOLDER/job.json``. Bad input raises the function's :class:`ConvsssError`."""
     from ..memory import set_budget
     from ..outputs import reference_to_files, render_to_files
@@ -46,15 +48,18 @@ def run_job(command, job_id, keywords, folder):
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    if command == "render":
-        stats = render_to_files(**keywords, output=folder / "image", stats_path=folder / "stats.json")
-        seconds = dict(stats["seconds"])
-    else:
-        stats = reference_to_files(**keywords, output=folder / "image")
-        seconds = {}
+    with warnings.catch_warnings(record=True) as heard:  # the manifest says them, not the worker's stderr
+        warnings.simplefilter("always")
+        if command == "render":
+            stats = render_to_files(**keywords, output=folder / "image", stats_path=folder / "stats.json")
+            seconds = dict(stats["seconds"])
+        else:
+            stats = reference_to_files(**keywords, output=folder / "image")
+            seconds = {}
     seconds["total"] = time.perf_counter() - start
     outputs = {k: v for k, v in stats["outputs"].items() if k in ("exr", "png", "stats")}
-    record = {"id": job_id, "status": "done", "seconds": seconds, "worker_pid": os.getpid(), "outputs": outputs}
+    record = {"id": job_id, "status": "done", "seconds": seconds, "worker_pid": os.getpid(), "outputs": outputs,
+              "warnings": list(dict.fromkeys(" ".join(str(w.message).split()) for w in heard))}
     atomic_write(folder / DONE, lambda tmp: Path(tmp).write_text(json.dumps(record, indent=1)))
     return record
 
