@@ -115,15 +115,55 @@ def keeps_irradiance(old, new, incidence, orders=Orders.ALL):
 
 
 def _delta_irradiance(scene, emitters, it, entry):
-    """``sum_e F_t cos I_e/r^2 V`` over the delta emitters ``emitters`` (exact: one deterministic sample each)."""
+    """``sum_e F_t cos I_e/r^2 T`` over the delta emitters ``emitters`` (exact: one deterministic sample each), ``T``
+    the shadow ray's transmittance (:func:`shadow_transmittance`)."""
     total = dr.zeros(mi.Color3f, dr.width(it.p))
     for emitter in emitters:
         ds, weight = emitter.sample_direction(it, mi.Point2f(0.5, 0.5), True)
         cos = dr.dot(it.n, ds.d)
         lit = (cos > 0) & (ds.pdf > 0)
-        lit &= ~scene.ray_test(it.spawn_ray_to(ds.p), lit)
-        total += dr.select(lit, weight * cos * entry(cos), 0.0)
+        total += dr.select(lit, weight * cos * entry(cos) * shadow_transmittance(scene, it.spawn_ray_to(ds.p), lit),
+                           0.0)
     return total
+
+
+#: The most surfaces a shadow ray crosses (index-matched boundaries of translucent objects) before it counts as
+#: blocked.
+MAX_CROSSINGS = 16
+
+
+def shadow_transmittance(scene, ray, active):
+    """What of a delta light's beam along ``ray`` (to the light, ``maxt`` its distance) arrives: 0 behind an opaque
+    surface or a dielectric, and through an index-matched (null) boundary of a homogeneous medium the light that
+    crosses it unscattered, ``e^{-sigma_t l}`` over the chord ``l`` (issue 51: a point light's shadow rays had
+    stopped at a translucent occluder, so light through an ear onto the head was missing). A heterogeneous medium
+    blocks it, as before."""
+    n = dr.width(ray.o)
+    ray = mi.Ray3f(ray)
+    transmittance = dr.select(active, mi.Color3f(1.0), mi.Color3f(0.0))
+    medium = dr.zeros(mi.MediumPtr, n)
+    active = mi.Bool(active)
+    for _ in range(MAX_CROSSINGS):
+        si = scene.ray_intersect(ray, active)
+        inside = active & (medium != None)  # noqa: E711 (a Dr.Jit pointer array)
+        if dr.any(inside):  # the segment just crossed lies in ``medium``: its unscattered light
+            mei = dr.zeros(mi.MediumInteraction3f, n)
+            mei.p, mei.medium = ray(0.5 * dr.minimum(si.t, ray.maxt)), medium
+            _, _, sigma_t = medium.get_scattering_coefficients(mei, inside)
+            homogeneous = medium.is_homogeneous()
+            segment = dr.minimum(si.t, ray.maxt)
+            transmittance[inside] *= dr.select(homogeneous, dr.exp(-sigma_t * segment), 0.0)
+        hit = active & si.is_valid()
+        if not dr.any(hit):
+            return transmittance
+        null = hit & (dr.max(si.bsdf(ray).eval_null_transmission(si, hit)) > 0.0)
+        transmittance[hit & ~null] = 0.0
+        medium[null & si.is_medium_transition()] = si.target_medium(ray.d)
+        remaining = ray.maxt - si.t
+        ray[null] = si.spawn_ray(ray.d)
+        ray.maxt[null] = remaining
+        active = null & (remaining > 0)
+    return dr.select(active, 0.0, transmittance)
 
 
 def _area_irradiance(scene, emitters, it, entry, rng):
