@@ -14,9 +14,10 @@ The walk stops at the scattering vertex with its weight times ``L_s`` (its in-sc
 Eq. W3 is exact, and the channels not ended walk on. A part thinner than twice that depth has no point so deep,
 so thin parts, ears and limbs and every event near the boundary are walked exactly.
 
-The field and the depth below the surface are one Dr.Jit texture per object (trilinear, on the volume transport's
-grid in the camera's view frame): ``depth`` (mm; from the grid's signed distance near the surface, a distance
-transform deeper), ``phi`` and its gradient per channel.
+The field and the depth below the surface are one Dr.Jit texture per object (trilinear, on a grid of its own in the
+camera's view frame, solved by the volume transport's :class:`~convsss.transport.volume.DiffusionSolve`): ``depth``
+(mm; from the grid's signed distance near the surface, a distance transform deeper), ``phi`` and its gradient per
+channel.
 """
 
 from dataclasses import dataclass
