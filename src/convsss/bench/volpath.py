@@ -86,6 +86,19 @@ def equal_error_seconds(errors, seconds, target):
     return float(math.exp(np.interp(x, le[order], lt[order])))
 
 
+def two_references(scene, folder, reference_spp, step, bar=None):
+    """``convsss reference`` of the scene file ``scene`` with seeds 1 and 2 to ``FOLDER/ref1`` and ``ref2`` (half
+    the relative MSE between them is the reference's own noise); their seconds. ``step(label)`` names each."""
+    seconds = []
+    for seed in (1, 2):
+        step(f"reference seed {seed}")
+        seconds.append(_run(["reference", str(scene), "-o", str(Path(folder) / f"ref{seed}"), "--spp",
+                             str(reference_spp), "--seed", str(seed)]))
+        if bar is not None:
+            bar.update()
+    return seconds
+
+
 def bench_scene(name, width, folder, reference_spp=REFERENCE_SPP, ladder=LADDER, bar=None):
     """One row: ``{scene, width, reference_s, reference_noise, convsss_s, convsss_error, ladder: [{spp, seconds,
     error}], volpath_equal_s, speedup, measurable}`` (errors: relative MSE over the object, the reference's noise
@@ -101,14 +114,7 @@ def bench_scene(name, width, folder, reference_spp=REFERENCE_SPP, ladder=LADDER,
         if bar is not None:
             bar.set_postfix_str(f"{name} {width}² {label}")
 
-    references = []
-    for seed in (1, 2):
-        step(f"reference seed {seed}")
-        seconds = _run(["reference", str(scene), "-o", str(folder / f"ref{seed}"), "--spp", str(reference_spp),
-                        "--seed", str(seed)])
-        references.append(seconds)
-        if bar is not None:
-            bar.update()
+    references = two_references(scene, folder, reference_spp, step, bar)
     reference = _image(folder / "ref1.exr")[0]
     step("convsss")
     convsss_s = _run(["render", str(scene), "-o", str(folder / "convsss"), "--aovs", "mask"])

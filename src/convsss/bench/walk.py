@@ -22,7 +22,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .scenes import BenchScene
-from .volpath import _image, _run, relative_mse
+from .volpath import _image, _run, relative_mse, two_references
 
 #: The benchmark's scenes: skin lit from behind, thin limbs behind a dielectric under an area light, milk a few
 #: mean free paths across, ketchup (low albedo in green and blue), marble behind a dielectric (diffusion holds).
@@ -58,13 +58,7 @@ def bench_walk_scene(name, scene, width, folder, spp=SPP, reference_spp=REFERENC
         if bar is not None:
             bar.set_postfix_str(f"{name} {label}")
 
-    seconds = []
-    for seed in (1, 2):
-        step(f"reference seed {seed}")
-        seconds.append(_run(["reference", str(path), "-o", str(folder / f"ref{seed}"), "--spp", str(reference_spp),
-                             "--seed", str(seed)]))
-        if bar is not None:
-            bar.update()
+    seconds = two_references(path, folder, reference_spp, step, bar)
     reference, second = _image(folder / "ref1.exr")[0], _image(folder / "ref2.exr")[0]
     rows = []
     mask = None

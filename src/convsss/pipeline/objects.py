@@ -304,15 +304,7 @@ def check_lights_outside(mi, scene, objects, unit_mm):
             lo, hi = obj.bbox_mm / unit_mm  # scene units, as the light's position
             if not (obj.closed and np.all(position >= lo) and np.all(position <= hi)):
                 continue
-            ray = mi.Ray3f(mi.Point3f(*(float(x) for x in position)), mi.Vector3f(0.5773503, 0.5773503, 0.5773503))
-            crossings = 0
-            for _ in range(10_000):
-                si = scene.ray_intersect(ray)
-                if not bool(si.is_valid().numpy()[0]):
-                    break
-                crossings += bool(obj.hit(*(a.numpy() for a in hit_indices(mi, si)))[0])
-                ray = si.spawn_ray(ray.d)
-            if crossings % 2 == 1:
+            if _inside(mi, scene, obj, position[None])[0]:
                 name = emitter.get_shape().id() if emitter.get_shape() is not None else emitter.id()
                 raise ConvsssError(f"light {name!r} is inside translucent shape {obj.name!r}: the diffusion "
                                    "model lights objects through their surface from outside; move the light out, or "
@@ -329,14 +321,14 @@ OVERLAP_POINTS = 64
 
 def _inside(mi, scene, obj, points):
     """Which of ``points`` (K, 3; scene units) lie inside the closed object ``obj``: the parity of its surface's
-    crossings along a ray from each (other shapes crossed on the way are stepped over)."""
+    crossings along a ray from each (other shapes crossed on the way are stepped over; at most 10 000)."""
     import drjit as dr
 
     ray = mi.Ray3f(mi.Point3f(*np.ascontiguousarray(np.asarray(points, dtype=np.float32).T)),
-                   dr.normalize(mi.Vector3f(0.5773503, 0.6123724, 0.5400617)))
+                   mi.Vector3f(0.5773503, 0.5773503, 0.5773503))
     crossings = np.zeros(len(points), dtype=np.int64)
     active = dr.full(mi.Bool, True, len(points))
-    for _ in range(1000):
+    for _ in range(10_000):
         si = scene.ray_intersect(ray, active)
         active &= si.is_valid()
         if not dr.any(active):
