@@ -6,7 +6,7 @@ import json
 import pytest
 from click.testing import CliRunner
 
-from convsss.bench.volpath import equal_error_seconds
+from convsss.bench.volpath import equal_error_seconds, seconds_to_reach
 from convsss.cli import cli
 
 
@@ -17,6 +17,16 @@ def test_equal_error_time_follows_monte_carlo_noise():
     errors = [0.8 / s for s in seconds]
     for target in (0.4, 0.8 / 7.0, 0.01, 2.0):
         assert equal_error_seconds(errors, seconds, target) == pytest.approx(0.8 / target)
+
+
+def test_the_walks_time_to_an_error_is_read_on_its_ladder_and_never_extrapolated():
+    """Inside the ladder, log-log interpolation; a target its first rung beats gives that rung's time as a bound; a
+    target below its last rung (a biased render's floor) is not reached."""
+    seconds, errors = [1.0, 4.0, 16.0], [0.8, 0.2, 0.1]
+    assert seconds_to_reach(errors, seconds, 0.4) == (pytest.approx(2.0), False)
+    assert seconds_to_reach(errors, seconds, 0.2) == (pytest.approx(4.0), False)
+    assert seconds_to_reach(errors, seconds, 0.9) == (1.0, True)
+    assert seconds_to_reach(errors, seconds, 0.05) is None
 
 
 @pytest.mark.parametrize("ladder", ["16,4", "4", "a,b", "0,4"])
@@ -35,3 +45,15 @@ def test_a_tiny_run_gives_a_row_per_scene(tmp_path):
     assert row["scene"] == "milk40" and [r["spp"] for r in row["ladder"]] == [2, 8]
     assert row["reference_noise"] > 0 and row["convsss_s"] > 0
     assert "milk40" in result.output
+
+
+@pytest.mark.slow
+def test_a_walk_ladder_reads_each_volpath_rung(tmp_path):
+    out = tmp_path / "v.json"
+    result = CliRunner().invoke(cli, ["bench", "volpath", "--scene", "milk40", "--width", "16", "--reference-spp",
+                                      "8", "--ladder", "1,4", "--walk-depth", "4", "--no-progress", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    (row,) = json.loads(out.read_text())["rows"]
+    assert [w["spp"] for w in row["walk_ladder"]] == [1, 4] and row["events_at_inf"] > 0
+    assert [a["spp"] for a in row["at_volpath"]] == [1, 4]
+    assert "at volpathmis's error" in result.output

@@ -192,11 +192,16 @@ def bench_media_command(scenes, width, reference_spp, runs, folder, as_json, pro
               help="Samples per pixel of the two references (seeds 1 and 2).")
 @click.option("--ladder", default="4,16,64,256", show_default=True,
               help="Samples per pixel of the path tracer's runs, comma-separated, increasing.")
+@click.option("--walk-depth", type=click.FloatRange(0.0, min_open=True), default=None,
+              help="Also render with the random walk ended at this depth (transport mean free paths; inf: walks to "
+                   "their end) at each spp of --ladder, and print per rung the time the walk needs to reach "
+                   "volpathmis's error there, over volpathmis's time, with the scattering events per camera path "
+                   "beside a walk's to its end. [default: the default render only]")
 @click.option("-o", "--output", "out_file", type=click.Path(dir_okay=False),
               help="Also write the result as JSON to this file.")
 @click.option("--json", "as_json", is_flag=True, help="Print {meta, rows} as JSON instead of the table.")
 @PROGRESS
-def bench_volpath_command(scenes, widths, reference_spp, ladder, out_file, as_json, progress):
+def bench_volpath_command(scenes, widths, reference_spp, ladder, walk_depth, out_file, as_json, progress):
     """Equal error against path tracing: the time volpathmis needs to reach a default convsss render's error.
 
     Per scene and size, all as commands in fresh processes on one scene file: two references (convsss reference,
@@ -204,6 +209,7 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, out_file, as_js
     convsss reference at each spp of --ladder. Errors are the relative MSE over the object's pixels (convsss's mask
     AOV), the reference's noise subtracted; volpathmis's time at convsss's error is interpolated on the ladder
     (log-log; beyond its ends, slope -1). Prints per row the errors and seconds and the speed-up at equal error.
+    With --walk-depth, the walk's own ladder and, per volpathmis rung, the walk's time to the same error.
     """
     from ..bench.volpath import VOLPATH_SCENES, bench_volpath, volpath_table
     from ..errors import ConvsssError
@@ -214,7 +220,8 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, out_file, as_js
         raise ConvsssError(f"--ladder {ladder!r}: give whole numbers of samples per pixel, e.g. 4,16,64") from None
     if len(spps) < 2 or any(v < 1 for v in spps) or list(spps) != sorted(set(spps)):
         raise ConvsssError(f"--ladder {ladder!r}: give at least two increasing whole numbers >= 1")
-    result = bench_volpath(scenes or tuple(VOLPATH_SCENES), widths or (128,), reference_spp, spps, progress)
+    result = bench_volpath(scenes or tuple(VOLPATH_SCENES), widths or (128,), reference_spp, spps, progress,
+                           walk_depth)
     if out_file:
         from ..files import atomic_write
 
