@@ -80,3 +80,12 @@ def ordered_kernels():
     finally:
         dr.set_thread_count(threads)
         dr.set_expand_threshold(expand)
+
+
+def to_numpy3(v, dtype=None):
+    """Dr.Jit 3-vectors (``Point3f``, ``Vector3f``, ``Normal3f``, ``Color3f``) of width N as an (N, 3) numpy array
+    (in ``dtype`` when given; else Dr.Jit's own)."""
+    import drjit as dr
+
+    array = dr.ravel(v).numpy().reshape(-1, 3)
+    return array if dtype is None else array.astype(dtype)

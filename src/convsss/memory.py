@@ -29,23 +29,61 @@ def resident_memory():
         return None
 
 
+def _address_space_left():
+    """Bytes of address space this process may still map under its ``RLIMIT_AS`` (``ulimit -v``; its size now from
+    ``/proc/self/statm``), or None where it has no such limit."""
+    import os
+    import resource
+
+    limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+    if limit == resource.RLIM_INFINITY:
+        return None
+    try:
+        with open("/proc/self/statm") as f:
+            size = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return limit
+    return max(limit - size, 0)
+
+
+#: Where a control group's limit and use are read: cgroup v2 (``memory.max``, at the root a container sees) and v1.
+_CGROUP_FILES = (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                 ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"))
+
+
+def _cgroup_left():
+    """Bytes the process's control group (a container's or a systemd slice's memory limit) may still take, or None
+    where it has no limit or none can be read."""
+    for limit_file, usage_file in _CGROUP_FILES:
+        try:
+            with open(limit_file) as f:
+                limit = f.read().strip()
+            if limit == "max" or int(limit) >= 2**60:  # v1 writes "no limit" as a number near 2^63
+                return None
+            with open(usage_file) as f:
+                return max(int(limit) - int(f.read()), 0)
+        except (OSError, ValueError):
+            continue
+    return None
+
+
 def available_memory():
-    """Bytes of memory available now (``MemAvailable``, within the process's :func:`set_budget`), or None where
-    that cannot be read."""
-    available = None
+    """Bytes of memory available now: the machine's ``MemAvailable``, within the process's ``RLIMIT_AS``, its
+    control group's limit and its :func:`set_budget`; None where none of them can be read."""
+    found = []
     try:
         with open("/proc/meminfo") as f:
             for line in f:
                 if line.startswith("MemAvailable:"):
-                    available = int(line.split()[1]) * 1024
+                    found.append(int(line.split()[1]) * 1024)
                     break
     except OSError:
         pass
+    found += [left for left in (_address_space_left(), _cgroup_left()) if left is not None]
     held = resident_memory() if _budget is not None else None
     if held is not None:
-        left = max(_budget - held, 0)
-        available = left if available is None else min(available, left)
-    return available
+        found.append(max(_budget - held, 0))
+    return min(found) if found else None
 
 
 def check_memory(needed, what, advice, limit=None):

@@ -101,6 +101,16 @@ def test_ctrl_c_ends_any_command_in_one_line():
     assert proc.returncode == 130 and proc.stderr == "interrupted\n"
 
 
+def test_an_allocation_that_fails_all_the_same_is_one_line():
+    """A MemoryError the guard could not foresee (another process took the memory) is one line, exit 2."""
+    code = "from convsss.cli import cli\n" \
+           "@cli.command()\n" \
+           "def probe():\n    raise MemoryError\n" \
+           "cli.main(args=['probe'], prog_name='convsss')\n"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.startswith("error: out of memory") and proc.stderr.count("\n") == 1
+
+
 # ---- compare and figures: outputs never overwrite inputs, one-line errors, nothing written ---------------------------
 def _snapshot(folder):
     return {p.relative_to(folder): p.read_bytes() if p.is_file() else None for p in folder.rglob("*")}

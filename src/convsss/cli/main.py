@@ -2,7 +2,8 @@
 
 Every command turns bad input (a :class:`~convsss.errors.ConvsssError` or a bad option value) into
 ``error: <one line>`` on stderr and exit code 2, Ctrl-C into ``interrupted`` and exit code 130 and SIGTERM into
-``terminated`` and 143, without a traceback; outputs are written all together or not at all
+``terminated`` and 143, an allocation that fails all the same (:mod:`convsss.memory` refuses what it can foresee)
+into one line and 2, without a traceback; outputs are written all together or not at all
 (:func:`convsss.files.write_files`), so an interrupted command leaves none half-written.
 """
 
@@ -46,6 +47,10 @@ class _ConvsssGroup(click.Group):
         except click.UsageError as error:
             hint = f" (see '{error.ctx.command_path} --help')" if error.ctx is not None else ""
             click.echo(f"error: {' '.join(error.format_message().split())}{hint}", err=True)
+            ctx.exit(2)
+        except MemoryError:
+            click.echo("error: out of memory (the machine's, or the process's limit: ulimit -v, a container's); "
+                       "give a coarser --accuracy, a smaller --width or fewer samples", err=True)
             ctx.exit(2)
         except Terminated:
             click.echo("terminated", err=True)

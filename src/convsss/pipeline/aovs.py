@@ -28,7 +28,7 @@ point, and the radiance (and the sampler's numbers) are the same whatever AOVs a
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import load_mitsuba, to_numpy3
 from ..samples import LocalIrradiance
 from .params import aov_channels
 
@@ -108,8 +108,8 @@ class FirstHitAOVs:
         if dr.width(lanes) > 0:
             owner = dr.gather(mi.Int32, which, lanes).numpy()
             known_np = dr.gather(mi.Bool, known, lanes).numpy()
-            points = dr.ravel(dr.gather(mi.Point3f, si.p, lanes)).numpy().reshape(-1, 3).astype(np.float64)
-            normals = dr.ravel(dr.gather(mi.Vector3f, mi.Vector3f(si.n), lanes)).numpy().reshape(-1, 3)
+            points = to_numpy3(dr.gather(mi.Point3f, si.p, lanes), np.float64)
+            normals = to_numpy3(dr.gather(mi.Vector3f, mi.Vector3f(si.n), lanes))
             points *= tracer.params.unit_mm
             lanes = lanes.numpy()
             for k, obj in enumerate(tracer.objects):

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import load_mitsuba, to_numpy3
 from ..errors import ConvsssError
 from ..samples import ViewFrame
 from .objects import hit_indices
@@ -121,8 +121,8 @@ def first_hits(scene, sensor, frame, unit_mm, objects):
         si = scene.ray_intersect(ray)
         hit = si.is_valid().numpy()
         shapes, instances = (a.numpy() for a in hit_indices(mi, si))
-        position = dr.ravel(si.p).numpy().reshape(-1, 3).astype(np.float64) * unit_mm
-        normal = dr.ravel(si.n).numpy().reshape(-1, 3).astype(np.float64)
+        position = to_numpy3(si.p, np.float64) * unit_mm
+        normal = to_numpy3(si.n, np.float64)
         away = (dr.dot(si.n, ray.d) > 0).numpy()
         for chunks, obj in zip(found, objects):
             mine = hit & obj.hit(shapes, instances)

@@ -33,7 +33,7 @@ import drjit as dr
 import numba
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import load_mitsuba, to_numpy3
 from ..fresnel import same_eta
 from ..hashtable import capacity, empty, probe
 from ..profiles.incidence import GAIN_NODES, Orders, gain_table
@@ -230,7 +230,7 @@ def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, a
             estimate = _area_irradiance(scene, other, it, entry, rng)
             per_point = dr.ravel(estimate).numpy().reshape(-1, irradiance_samples, 3).mean(axis=1)
             out[start:stop] += per_point
-        out[start:stop] += dr.ravel(e).numpy().reshape(-1, 3)
+        out[start:stop] += to_numpy3(e)
     return np.maximum(np.nan_to_num(out), 0.0)
 
 
@@ -347,7 +347,7 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
     scale = 1.0 / (per_point if paths >= 1 else paths)
     # Voxels that hold about DIRECTION_STRATA^2 paths on a flat surface: paths per unit area = paths / area.
     spacing = DIRECTION_STRATA * math.sqrt(float(np.mean(area)) / min(paths, per_point))
-    square = stratified_directions(dr.ravel(position).numpy().reshape(-1, 3), owners, spacing, seed,
+    square = stratified_directions(to_numpy3(position), owners, spacing, seed,
                                    DIRECTION_STRATA)
     out, deferred = np.zeros((n, 3)), []
     for start in range(0, len(owners), CHUNK_PATHS):
@@ -363,7 +363,7 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         local = mi.warp.square_to_cosine_hemisphere(mi.Point2f(u[0], u[1]))
         rays = it.spawn_ray(it.sh_frame.to_world(local))
         # Paper Eq. 2 by cosine sampling: F_t(eta, cos) g L cos / (cos / pi) = F_t g pi L, over the paths per point.
-        weight = dr.ravel(entry(local.z) * dr.pi * scale).numpy().reshape(-1, 3).astype(np.float64)
+        weight = to_numpy3(entry(local.z) * dr.pi * scale, np.float64)
         radiance, hits = incident(sampler, rays, weight, owner)
         deferred += hits
         for c in range(3):
@@ -419,8 +419,8 @@ def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=
         position, normal, area = sample_surface(obj.shape, count, seed, obj.orientation, stream=stream,
                                                 to_world=obj.to_world)
         area_mm2 = area.numpy().astype(np.float64) * unit_mm**2
-        position_mm = dr.ravel(position).numpy().reshape(-1, 3).astype(np.float64) * unit_mm
-        normal_np = dr.ravel(normal).numpy().reshape(-1, 3).astype(np.float64)
+        position_mm = to_numpy3(position, np.float64) * unit_mm
+        normal_np = to_numpy3(normal, np.float64)
     with stage("irradiance"):
         irradiance = surface_irradiance(scene, position, normal, obj.eta, irradiance_samples, seed + 7919 * stream,
                                         albedo=obj.material.albedo_prime if oblique else None, orders=orders)

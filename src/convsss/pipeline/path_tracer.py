@@ -73,7 +73,7 @@ import math
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import load_mitsuba, to_numpy3
 from ..profiles.incidence import Orders, exit_normalization
 from .irradiance import Entry, fresnel_transmittance, refracted_cosine
 from .mesh_exitance import MeshExitance, usable
@@ -91,10 +91,6 @@ THROUGH_ROULETTE = 0.1
 CROSSING_FLOOR = 1e-3
 #: Room for recorded hits (those the screen table does not know), per path; more take a second, identical trace.
 RECORD_ROOM = 1.0
-
-
-def _to_numpy3(v):
-    return dr.ravel(v).numpy().reshape(-1, 3)
 
 
 def _color(array):
@@ -378,7 +374,7 @@ class PathTracer:
         self._deferred = deferred = []
         try:
             radiance, _ = self._trace(sampler, ray, 1)
-            return _to_numpy3(radiance).astype(np.float64) * self._weight, deferred
+            return to_numpy3(radiance, np.float64) * self._weight, deferred
         finally:
             self._tags = self._weight = self._deferred = None
 

@@ -12,7 +12,8 @@ profile, the pixel footprint at its depth, its extent in the camera's frame, the
   :meth:`~convsss.transport.base.Transport.sample_area`: the profile's own, or in the multiscale transport's local
   limit one that grows with the pixel footprint), the second rule capped by :data:`PROFILE_RULE_MEMORY` of the
   memory guard and by :data:`MAX_IRRADIANCE_SECONDS`, never below the first (a warning says by how much the noise
-  grows);
+  grows); where every camera path walks (``0 < walk_depth < inf``) and the samples light the walk's diffusion field
+  alone, the field's own rule instead (:func:`~convsss.pipeline.field.sample_count`: a few per face of its cells);
 - the memory: ``BYTES_PER_SAMPLE`` per sample plus what the transport will build
   (:meth:`~convsss.transport.base.Transport.planned_bytes`: the multiscale far-field mesh, the convolution's layers),
   and the time of the irradiance rays: refused in one line, before any work, when either is beyond the limits.
@@ -190,6 +191,14 @@ def field_bytes(obj, params):
     return planned_bytes(obj, params)
 
 
+def field_sample_count(obj, params):
+    """The surface samples of ``obj`` where they light the random walk's field alone (:func:`~.field.sample_count`),
+    else None."""
+    from .field import sample_count as field_count
+
+    return field_count(obj, params)
+
+
 def plan_object(scene, sensor, frame, obj, visible, index, params):
     """The :class:`ObjectPlan` of one visible object, or a one-line error when its samples or its transport would
     not fit in memory, or its irradiance would take too long."""
@@ -209,7 +218,10 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
         profile_area = 1.0 / sum(f / transport.sample_area(profile, held_params)
                                  for f, profile in zip(obj.classes.shares, obj.class_profiles))
     count = wanted = sample_count(obj.area_mm2, cell, p.sample_density, profile_area, p.profile_samples)
-    if count > count_pixel:
+    for_field = field_sample_count(obj, p)
+    if for_field is not None:  # every camera path walks: the samples light the random walk's field alone
+        count = wanted = for_field
+    elif count > count_pixel:
         count = max(count_pixel, min(count, sample_cap(scene, p)))
         if count < wanted:
             warnings.warn(f"translucent shape {obj.name!r}: {wanted} surface samples would keep its sample noise near "
