@@ -16,6 +16,7 @@ import contextlib
 import csv
 import io
 import json
+import logging
 import os
 import time
 import warnings
@@ -177,8 +178,10 @@ def _cluster(scheduler, workers, retries):
             yield client
         return
     workers = workers or os.cpu_count() or 1
+    # Its workers log at CRITICAL only: a failing job is the manifest's one line (and the command's), not Dask's
+    # "Compute Failed" and the worker's traceback on our stderr beside it.
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=40)
+                           silence_logs=logging.CRITICAL)
     with cluster, Client(cluster) as client:
         yield client
 
