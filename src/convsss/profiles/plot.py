@@ -34,13 +34,18 @@ def plot_profiles(panels, path, panel_size=(4.6, 3.6), dpi=100):
         reach = max(float(np.max(p.radius_energy(1e-4))) for _, p in profiles)
         core = min(float(np.min(p.radius_energy(1 - 1e-3))) for _, p in profiles)
         r = np.geomspace(max(core, reach * 1e-5), reach, 400)
+        top = max(float(np.max(r[:, None] * p(r))) for _, p in profiles)
+        if not top > 0.0:  # a medium that does not scatter reflects nothing diffusely: no curve to draw on log axes
+            ax.set(title=title, xlabel="r  [mm]", ylabel="r R_d(r)  [1/mm]")
+            ax.text(0.5, 0.5, "R_d = 0: the medium does not scatter", ha="center", va="center",
+                    transform=ax.transAxes)
+            continue
         for k, (model, p) in enumerate(profiles):
             values = p(r)
             for c in range(3):
                 ax.plot(r, r * values[:, c], STYLES[k % 4], color=COLOURS[c], lw=1.2,
                         label=model if c == 0 else None)
         ax.set(xscale="log", yscale="log", title=title, xlabel="r  [mm]", ylabel="r R_d(r)  [1/mm]")
-        top = max(float(np.max(r[:, None] * p(r))) for _, p in profiles)
         ax.set_ylim(top * 1e-5, top * 2)
         ax.legend(fontsize=7)
     for ax in axes[len(panels):]:
