@@ -198,7 +198,8 @@ def test_paths_drawn_with_another_sampling_material_estimate_the_same_image(mi, 
 def test_a_point_lights_shadow_ray_crosses_an_index_matched_occluder(mi):
     """A floor under a 0.5 mm index-matched absorbing slab, a point light 6 mm above it, direct light only: the
     floor in the slab's shadow gets the light the slab lets through unscattered, ``e^{-sigma_t 0.5 / cos}``, of the
-    floor without the slab (Mitsuba's ``direct``) (issue 51: the camera paths' shadow rays had stopped at the slab, leaving it black)."""
+    floor without the slab (Mitsuba's ``direct``) (issue 51: the camera paths' shadow rays had stopped at the slab,
+    leaving it black)."""
     from convsss.materials import Material
     from convsss.scene.materials import translucent
 
