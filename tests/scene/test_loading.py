@@ -148,8 +148,8 @@ def test_a_mesh_wound_inward_is_turned_outward_for_the_render_and_the_path_trace
                         "shape": mesh_dict(demo_mesh())}).shapes()[0]
     params = mi.traverse(bunny)
     extent = float(np.ptp(np.array(params["vertex_positions"]).reshape(-1, 3), axis=0).max())
-    faces = np.array(params["faces"]).reshape(-1, 3)
-    for name, faces in (("out", faces), ("in", faces[:, [0, 2, 1]])):
+    wound = np.array(params["faces"]).reshape(-1, 3)
+    for name, faces in (("out", wound), ("in", wound[:, [0, 2, 1]])):
         mesh = mi.Mesh(name, len(params["vertex_positions"]) // 3, len(faces.ravel()) // 3)
         copy = mi.traverse(mesh)
         copy["vertex_positions"], copy["faces"] = params["vertex_positions"], mi.UInt32(faces.ravel())
