@@ -123,9 +123,9 @@ def field_spacing(bounds_mm, material, walk_depth):
 def field_only(params):
     """Whether the surface samples serve the field alone: ``0 < walk_depth < inf`` (every camera path walks, so no
     pixel reads a transport's exitance) and no AOV asks for the transports' exitance or the samples' irradiance."""
-    from .params import parse_aovs
+    from .params import reads_transports
 
-    return 0.0 < params.walk_depth < np.inf and not {"exitance", "irradiance"} & set(parse_aovs(params.aovs))
+    return 0.0 < params.walk_depth < np.inf and not reads_transports(params.aovs)
 
 
 def sample_count(obj, params):

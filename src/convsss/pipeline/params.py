@@ -47,6 +47,12 @@ exitance, irradiance, object, mask, depth, normal
     return names
 
 
+def reads_transports(aovs):
+    """Whether the ``aovs`` parameter asks for what only the transports give: their exitance, or the samples'
+    irradiance (a render whose every camera path walks needs them for nothing else)."""
+    return bool({"exitance", "irradiance"} & set(parse_aovs(aovs)))
+
+
 def aov_channels(names):
     """The film channels of the AOVs ``names`` (from :func:`parse_aovs`), e.g. ``exitance.R``, in order."""
     return [f"{name}.{channel}" for name in names for channel in AOVS[name]]

@@ -41,7 +41,7 @@ from .field import diffusion_field
 from .irradiance import keeps_irradiance
 from .lighting import light_samples
 from .objects import find_translucent_objects
-from .params import RenderParams, parse_aovs, render_parameters
+from .params import RenderParams, parse_aovs, reads_transports, render_parameters
 from .passes import build_transports, translucent_passes
 from .path_tracer import PathTracer
 from .plan import plan_samples
@@ -190,8 +190,7 @@ class RenderSession:
     def walks_alone(self):
         """Whether the render needs none of stages 2-5: every walk goes to its end (``walk_depth`` inf) and no AOV
         asks for the transports' exitance or the samples' irradiance."""
-        return self.params.walk_depth == float("inf") and not {"exitance", "irradiance"} & set(
-            parse_aovs(self.params.aovs))
+        return self.params.walk_depth == float("inf") and not reads_transports(self.params.aovs)
 
     def _attach(self, tracer, transports, screen, diffusion=None):
         """``tracer`` reads ``transports``, ``screen`` and the ``diffusion`` field from now on; the AOVs read the
