@@ -92,23 +92,17 @@ def test_console_script_reports_bad_input_in_one_line():
 
 
 @pytest.mark.slow
-def test_ctrl_c_ends_any_command_in_one_line():
-    code = "from convsss.cli import cli\n" \
-           "@cli.command()\n" \
-           "def probe():\n    raise KeyboardInterrupt\n" \
-           "cli.main(args=['probe'], prog_name='convsss')\n"
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert proc.returncode == 130 and proc.stderr == "interrupted\n"
-
-
-def test_an_allocation_that_fails_all_the_same_is_one_line():
-    """A MemoryError the guard could not foresee (another process took the memory) is one line, exit 2."""
-    code = "from convsss.cli import cli\n" \
-           "@cli.command()\n" \
-           "def probe():\n    raise MemoryError\n" \
-           "cli.main(args=['probe'], prog_name='convsss')\n"
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert proc.returncode == 2 and proc.stderr.startswith("error: out of memory") and proc.stderr.count("\n") == 1
+@pytest.mark.parametrize("raised, code, said", [
+    ("KeyboardInterrupt", 130, "interrupted\n"),
+    ("MemoryError", 2, "error: out of memory"),  # one the guard could not foresee (another process took the memory)
+])
+def test_ctrl_c_and_memory_end_any_command_in_one_line(raised, code, said):
+    code_text = "from convsss.cli import cli\n" \
+                "@cli.command()\n" \
+                f"def probe():\n    raise {raised}\n" \
+                "cli.main(args=['probe'], prog_name='convsss')\n"
+    proc = subprocess.run([sys.executable, "-c", code_text], capture_output=True, text=True)
+    assert proc.returncode == code and proc.stderr.startswith(said) and proc.stderr.count("\n") == 1
 
 
 # ---- compare and figures: outputs never overwrite inputs, one-line errors, nothing written ---------------------------
