@@ -18,32 +18,33 @@ def set_budget(nbytes):
     _budget = None if nbytes is None else int(nbytes)
 
 
-def resident_memory():
-    """Bytes this process holds now (its resident set, ``/proc/self/statm``), or None where that cannot be read."""
+def _statm(field):
+    """Field ``field`` of ``/proc/self/statm`` in bytes (0: the process's size, 1: its resident set), or None where
+    that cannot be read."""
     import os
 
     try:
         with open("/proc/self/statm") as f:
-            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+            return int(f.read().split()[field]) * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, IndexError):
         return None
+
+
+def resident_memory():
+    """Bytes this process holds now (its resident set, ``/proc/self/statm``), or None where that cannot be read."""
+    return _statm(1)
 
 
 def _address_space_left():
     """Bytes of address space this process may still map under its ``RLIMIT_AS`` (``ulimit -v``; its size now from
     ``/proc/self/statm``), or None where it has no such limit."""
-    import os
     import resource
 
     limit = resource.getrlimit(resource.RLIMIT_AS)[0]
     if limit == resource.RLIM_INFINITY:
         return None
-    try:
-        with open("/proc/self/statm") as f:
-            size = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, IndexError):
-        return limit
-    return max(limit - size, 0)
+    size = _statm(0)
+    return limit if size is None else max(limit - size, 0)
 
 
 #: Where a control group's limit and use are read: cgroup v2 (``memory.max``, at the root a container sees) and v1.
