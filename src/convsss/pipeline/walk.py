@@ -20,8 +20,8 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   directions, as in ``volpathmis``);
 * at a boundary, the scene's BSDF: a smooth or rough dielectric refracts out or reflects back in, a null one lets
   the path through into the next medium;
-* a delta light (point, spot, directional) behind a translucent object's dielectric boundary, which no path can
-  reach (``volpathmis`` renders it black), lights a scattering vertex along the straight shadow ray, which crosses
+* a delta light (point, spot, directional) behind a translucent object's smooth dielectric boundary, which no path
+  can reach (``volpathmis`` renders it black), lights a scattering vertex along the straight shadow ray, which crosses
   the boundary at cosine ``mu`` outside and ``mu'`` inside with
 
       F_t(eta, mu) mu / mu'                                                                              (Eq. W4)
@@ -319,10 +319,12 @@ class RandomWalk:
             active_surface &= si.is_valid() & active & ~active_medium
             bsdf = si.bsdf(ray)
             passed = bsdf.eval_null_transmission(si, active_surface)
-            # A delta light through a translucent object's dielectric boundary, which no path can reach: straight
-            # through, times the Fresnel transmittance and the beam's compression (Eq. W4).
+            # A delta light through a translucent object's smooth dielectric boundary, which no path can reach:
+            # straight through, times the Fresnel transmittance and the beam's compression (Eq. W4). A rough one is
+            # left to the next-event estimation at the boundary, where its BSDF takes the light.
             which, eta = self.classify(si)
-            through = inside & active_surface & ds.delta & (which >= 0) & (dr.max(passed) == 0.0)
+            smooth = ~mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+            through = inside & active_surface & ds.delta & (which >= 0) & smooth & (dr.max(passed) == 0.0)
             cos_out = dr.abs(dr.dot(si.n, ray.d))
             refracted = dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
             passed[through] = fresnel_transmittance(eta, cos_out) * cos_out / refracted
