@@ -21,13 +21,18 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
 * at a boundary, the scene's BSDF: a smooth or rough dielectric refracts out or reflects back in, a null one lets
   the path through into the next medium;
 * a delta light (point, spot, directional) behind a translucent object's smooth dielectric boundary, which no path
-  can reach (``volpathmis`` renders it black), lights a scattering vertex along the straight shadow ray, which crosses
-  the boundary at cosine ``mu`` outside and ``mu'`` inside with
+  can reach (``volpathmis`` renders it black), lights a scattering vertex along the straight shadow ray, which
+  leaves the object after a length ``s`` inside at cosine ``mu'`` and crosses the boundary at cosine ``mu`` outside,
+  with
 
-      F_t(eta, mu) mu / mu'                                                                              (Eq. W4)
+      F_t(eta, mu) (mu / mu') e^{-sigma_t s (mu / mu' - 1)}                                              (Eq. W4)
 
-  (the Fresnel transmittance and the beam's compression of Eq. S2, :mod:`.path_tracer`; the bending of the ray is
-  not followed: exact for a vertex on the normal through the crossing, an approximation elsewhere);
+  times the straight ray's own transmittance: the Fresnel transmittance, the beam's compression and, in a
+  homogeneous medium, the length of the refracted path inside, ``s mu / mu'`` (all three as in Eq. S2,
+  :mod:`.path_tracer`: exact for a plane boundary, an approximation elsewhere). Where walks end in the field
+  (``walk_depth`` finite) every emitter lights the vertex this way, and a path that refracts out of the object
+  straight after a scattering vertex no longer counts the emitter it hits: behind a smooth boundary an area light
+  or the environment is then found by light sampling, not by the chance hits that make ``volpathmis`` noisy there;
 * Russian roulette on the path's weight from ``rr_depth`` (not at albedo ~1 inside a medium, where it would only add
   fireflies: there the roulette's survival odds are the weight itself, capped at 1), ``max_depth`` surface bounces
   and at most :data:`MAX_WALK` scattering events inside media.
@@ -96,6 +101,10 @@ class RandomWalk:
         self.scene, self.classify = scene, classify
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         self.rr_depth = params.rr_depth
+        #: Every emitter's light, not just a delta light's, reaches a scattering vertex straight through a smooth
+        #: boundary (Eq. W4) where walks end in the field (``walk_depth`` finite); at ``inf`` only what no path
+        #: reaches, so that the walk stays ``volpathmis``.
+        self.straight_through = params.walk_depth < float("inf")
         #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.
         self.field = None
         #: Counts since :meth:`reset`: ``paths`` traced, scattering ``events`` in media, paths ``ended`` in the
@@ -133,6 +142,8 @@ class RandomWalk:
         last_null = dr.full(mi.Bool, False, n)
         needs_intersection = dr.full(mi.Bool, True, n)
         specular_chain = dr.full(mi.Bool, True, n)
+        after_scatter = dr.full(mi.Bool, False, n)  # the last event was a scattering in a medium
+        straight_out = dr.full(mi.Bool, False, n)  # and then the path refracted out through a smooth boundary
         valid = dr.full(mi.Bool, False, n)
         depth = dr.zeros(mi.UInt32, n)  # bounces on opaque surfaces
         events = dr.zeros(mi.UInt32, n)  # scattering events in media, reflections and refractions at their boundaries
@@ -176,6 +187,7 @@ class RandomWalk:
             scatterings[scatter] += 1
             last_scatter[scatter] = _interaction(mei)
             specular_chain &= ~scatter
+            after_scatter |= scatter
             ratios = _update(ratios, null_probability, mei.sigma_n, spectral & null)
             ratios_nee = _update(ratios_nee, 1.0, mei.sigma_n, spectral & null)
             ratios_nee = _update(ratios_nee, 1.0, null_probability, grey & null)
@@ -197,11 +209,11 @@ class RandomWalk:
             phase = mei.medium.phase_function()
             phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
             valid |= scatter
-            end_nee, end_uni, emitted, ds = self._emitter(_interaction(mei), medium, ratios, channel, sampler,
-                                                          scatter)
+            end_nee, end_uni, emitted, ds, crossed = self._emitter(_interaction(mei), medium, ratios, channel,
+                                                                   sampler, scatter)
             phase_value, phase_pdf = phase.eval_pdf(phase_ctx, mei, ds.d, scatter)
             end_nee = _update(end_nee, 1.0, phase_value, scatter)
-            end_uni = _update(end_uni, dr.select(ds.delta, 0.0, phase_pdf), phase_value, scatter)
+            end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, phase_pdf), phase_value, scatter)
             result[scatter] += _mis(end_nee, end_uni) * emitted  # Eq. W2
             ratios_nee = _where(scatter, ratios, ratios_nee)
             wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
@@ -223,16 +235,17 @@ class RandomWalk:
             emitter_pdf = scene.pdf_emitter_direction(last_scatter, to_emitter, seen & ~direct)
             ratios_nee = _update(ratios_nee, emitter_pdf, 1.0, seen & ~direct)
             radiance = emitter.eval(si, seen)
+            seen &= ~straight_out  # the light that Eq. W4 took at the last scattering vertex
             result[seen] += dr.select(direct, _mis(ratios), _mis(ratios, ratios_nee)) * radiance
             active_surface &= si.is_valid()
 
             ctx = mi.BSDFContext()
             bsdf = si.bsdf(ray)
             lit = active_surface & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth) & (depth + 1 < self.max_depth)
-            end_nee, end_uni, emitted, ds = self._emitter(si, medium, ratios, channel, sampler, lit)
+            end_nee, end_uni, emitted, ds, crossed = self._emitter(si, medium, ratios, channel, sampler, lit)
             bsdf_value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), lit)
             end_nee = _update(end_nee, 1.0, bsdf_value, lit)
-            end_uni = _update(end_uni, dr.select(ds.delta, 0.0, bsdf_pdf), bsdf_value, lit)
+            end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, bsdf_pdf), bsdf_value, lit)
             result[lit] += _mis(end_nee, end_uni) * emitted
 
             bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(active_surface), sampler.next_2d(active_surface),
@@ -245,6 +258,10 @@ class RandomWalk:
             specular_chain |= solid & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
             specular_chain &= ~(active_surface & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Smooth))
             boundary = active_surface & si.is_medium_transition()
+            if dr.hint(self.straight_through, mode="scalar"):
+                out = boundary & after_scatter & mi.has_flag(bs.sampled_type, mi.BSDFFlags.DeltaTransmission)
+                straight_out[solid] = out & (self.classify(si)[0] >= 0)
+                after_scatter &= ~solid
             depth[solid & ~boundary] += 1
             events[solid & boundary] += 1
             last_scatter[solid] = _interaction(si)
@@ -264,7 +281,8 @@ class RandomWalk:
     def _emitter(self, origin, medium, ratios, channel, sampler, active):
         """Next-event estimation from ``origin`` (an interaction in ``medium``): an emitter sample and its shadow ray
         through null boundaries and the media between (a ratio-tracking transmittance, every channel's density
-        kept); ``(ratios as light sampling drew it, as the path's own sampling would, emitted L, the sample)``."""
+        kept); ``(ratios as light sampling drew it, as the path's own sampling would, emitted L, the sample, where it
+        crossed a smooth boundary by Eq. W4)`` (no path's own sampling reaches the light that way)."""
         scene = self.scene
         with_nee, with_uni = ratios, ratios
         ds, weight = scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
@@ -279,6 +297,7 @@ class RandomWalk:
         total = dr.zeros(mi.Float, dr.width(max_dist))
         si = dr.zeros(mi.SurfaceInteraction3f, dr.width(max_dist))
         needs_intersection = dr.full(mi.Bool, True, dr.width(max_dist))
+        crossed = dr.full(mi.Bool, False, dr.width(max_dist))
         while active:
             remaining = max_dist - total
             ray.maxt = remaining
@@ -319,15 +338,21 @@ class RandomWalk:
             active_surface &= si.is_valid() & active & ~active_medium
             bsdf = si.bsdf(ray)
             passed = bsdf.eval_null_transmission(si, active_surface)
-            # A delta light through a translucent object's smooth dielectric boundary, which no path can reach:
-            # straight through, times the Fresnel transmittance and the beam's compression (Eq. W4). A rough one is
-            # left to the next-event estimation at the boundary, where its BSDF takes the light.
+            # A delta light through a translucent object's smooth dielectric boundary, which no path can reach (with
+            # straight_through, every light): straight out, times the Fresnel transmittance, the beam's compression
+            # and, in a homogeneous medium, the refracted path's length inside (Eq. W4). A rough one is left to the
+            # next-event estimation at the boundary, where its BSDF takes the light.
             which, eta = self.classify(si)
             smooth = ~mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-            through = inside & active_surface & ds.delta & (which >= 0) & smooth & (dr.max(passed) == 0.0)
+            straight = ds.delta | self.straight_through
+            out = dr.dot(si.n, ray.d) > 0.0
+            through = inside & out & active_surface & straight & (which >= 0) & smooth & (dr.max(passed) == 0.0)
+            crossed |= through
             cos_out = dr.abs(dr.dot(si.n, ray.d))
-            refracted = dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
-            passed[through] = fresnel_transmittance(eta, cos_out) * cos_out / refracted
+            compression = cos_out / dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
+            sigma_t = dr.select(medium.is_homogeneous(), mi.Color3f(mei.combined_extinction), 0.0)
+            passed[through] = (fresnel_transmittance(eta, cos_out) * compression
+                               * dr.exp(-sigma_t * total * (compression - 1.0)))  # Eq. W4
             with_nee = _update(with_nee, 1.0, passed, active_surface)
             with_uni = _update(with_uni, 1.0, passed, active_surface)
             ray[active_surface] = si.spawn_ray(ray.d)
@@ -336,4 +361,4 @@ class RandomWalk:
             active &= (active_medium | active_surface) & dr.any(_mis(with_uni) != 0.0)
             crossing = active_surface & si.is_medium_transition()
             medium[crossing] = si.target_medium(ray.d)
-        return with_nee, with_uni, emitted, ds
+        return with_nee, with_uni, emitted, ds, crossed
