@@ -43,14 +43,16 @@ def test_walks_ended_in_the_field_keep_the_mean_of_volpathmis_and_are_shorter(mi
 def test_a_point_light_behind_a_dielectric_stays_lit_as_walks_to_the_end_light_it(mi, sphere_scene):
     """A large sphere of high albedo (diffusion right there) under a point light, behind a smooth dielectric, which
     no path reaches: walks ended in the field render it as walks to their end do, both lit through Eq. W4 (checked
-    against volpathmis under a finite light in tests/pipeline/test_walk.py). Measured: 1.03-1.04 (the field's own
-    bias behind a dielectric); the transport 0.95-0.96."""
+    against volpathmis under a finite light in tests/pipeline/test_walk.py). Measured: 1.015-1.031 (the field's
+    extrapolated boundary from the Fresnel moments; 1.03-1.047 with the classic dipole's); the transport 0.95-0.96."""
     scene = mi.load_dict(sphere_scene(material="marble", radius=20.0, boundary="dielectric", res=RES))
     inside = translucent_pixels(scene)
-    full = _render(mi, scene, mi.load_dict({"type": "convsss", "walk_depth": float("inf")}), (1,))[0]
-    walked = _render(mi, scene, mi.load_dict({"type": "convsss", "walk_depth": 4.0}), (2,))[0][inside].mean(axis=0)
-    ratio = walked / full[inside].mean(axis=0)
-    assert np.all(np.abs(ratio - 1.0) < 0.05), ratio
+    def mean(depth, seeds):
+        integrator = mi.load_dict({"type": "convsss", "walk_depth": depth})
+        return np.mean([image[inside].mean(axis=0) for image in _render(mi, scene, integrator, seeds)], axis=0)
+
+    ratio = mean(4.0, (3, 4)) / mean(np.inf, (1, 2))
+    assert np.all(np.abs(ratio - 1.0) < 0.04), ratio
 
 
 @pytest.mark.slow

@@ -45,9 +45,10 @@ class Coefficients:
         return np.concatenate([self.diffusion, self.absorption, self.source_depth, self.read_depths.ravel()]).tobytes()
 
 
-def coefficients(profile, material, h):
+def coefficients(profile, material, h, reflection=None):
     """The :class:`Coefficients` of ``material`` on a grid of spacing ``h``, its sources' strength that of
-    ``profile``'s total reflectance.
+    ``profile``'s total reflectance; ``reflection``: the boundary's ``A`` of ``z_b = 2 A D`` (default the classic
+    dipole's, whose half-space the transport's correction is calibrated on).
 
     The grid's absorption makes the discrete equation decay along a grid axis at the continuous rate ``sigma_tr``
     (a lattice decays as ``cosh(kappa h) = 1 + sigma_a h^2 / (2 D)``, slower than ``sigma_tr`` by a relative
@@ -86,7 +87,7 @@ def coefficients(profile, material, h):
         absorption = (2.0 * diffusion / h**2) * (np.cosh(sigma_tr * h) - 1.0)  # Eq. D3
     own = np.asarray(dipole.total_reflectance, dtype=np.float64)
     scale = np.divide(np.asarray(profile.total_reflectance, dtype=np.float64), own, out=np.zeros(3), where=own > 0)
-    z_b = 2.0 * dipole.A * diffusion
+    z_b = 2.0 * (dipole.A if reflection is None else reflection) * diffusion
 
     def g(d):
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
