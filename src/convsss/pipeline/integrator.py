@@ -216,8 +216,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self.stats["reused"] = reused
             return image
         finally:  # a render keeps its samples and transports only for a prepared scene (prepare, render_prepared)
-            if not session.keep:
-                session.prepared = session.tracer = None
+            if not session.keep:  # nothing of the scene stays either: it owns this integrator, and a cycle
+                session.release()  # through Mitsuba's objects is never freed (every later kernel then slows)
             elif self.params.passes > 1:  # the passes' states were their shares'
                 session.prepared, session.tracer, session.aovs = kept
 
