@@ -43,7 +43,7 @@ def test_a_render_lets_its_scene_go(mi, sphere_scene):
         scene = mi.load_dict(sphere_scene(res=16, integrator={"aovs": "mask"}))
         mi.render(scene, seed=seed)
         del scene
-    assert live() == before
+    assert live() <= before  # (earlier tests' sessions may go meanwhile)
 
 
 def test_same_seed_same_image(mi, sphere_scene):
