@@ -38,3 +38,10 @@ def test_bench_noise_rows_and_table():
         np.testing.assert_allclose(r["median_sqrt_passes"], np.array(r["median"]) * np.sqrt(r["passes"]))
     table = noise_table(rows, 24)
     assert "| 2 | 2 |" in table and "median x sqrt(passes)" in table
+
+
+@pytest.mark.slow
+def test_bench_noise_of_the_walk():
+    rows = bench_noise(width=24, spp=1, passes=(1, 2), progress=False, walk_depth=4.0)
+    assert all(0 < m <= p for r in rows for m, p in zip(r["median"], r["p95"]))
+    assert "walk_depth 4" in noise_table(rows, 24, 4.0)

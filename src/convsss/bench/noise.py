@@ -34,24 +34,24 @@ def pixel_noise(a, b, inside):
     return np.abs(a - b) / math.sqrt(2.0) / np.maximum(mean, floor)
 
 
-def _scene(mi, width, spp, passes, aovs="mask"):
+def _scene(mi, width, spp, passes, aovs="mask", walk_depth=0.0):
     from ..materials import material
     from ..pipeline.params import RenderParams
     from ..scene.quick import demo_mesh, quick_scene
     from .render import DEMO
 
     defaults = RenderParams()
-    integrator = {"type": "convsss", "specular": "phong", "aovs": aovs, "passes": passes,
+    integrator = {"type": "convsss", "specular": "phong", "aovs": aovs, "passes": passes, "walk_depth": walk_depth,
                   "sample_density": defaults.sample_density * passes,
                   "profile_samples": defaults.profile_samples * passes}
     return mi.load_dict(quick_scene(demo_mesh(), material(DEMO["material"]), DEMO["size_mm"], width=width,
                                     height=width, spp=spp * passes, floor=True, integrator=integrator))
 
 
-def bench_noise(width=128, spp=4, passes=PASSES, progress=True):
+def bench_noise(width=128, spp=4, passes=PASSES, progress=True, walk_depth=0.0):
     """Rows ``{passes, spp, samples, pixels, seconds, median, p95, rms, median_sqrt_passes}`` (the noises per channel,
-    relative),
-    one per pass count: each pass at a default render's budget of ``spp`` samples per pixel."""
+    relative), one per pass count: each pass at a default render's budget of ``spp`` samples per pixel, the camera
+    paths walking to ``walk_depth`` (0: the transport alone)."""
     import time
 
     import convsss
@@ -60,7 +60,7 @@ def bench_noise(width=128, spp=4, passes=PASSES, progress=True):
     rows = []
     bar = tqdm(total=len(passes) * len(SEEDS), desc="bench noise", unit="render", disable=not progress)
     for k in passes:
-        scene = _scene(mi, width, spp, k)
+        scene = _scene(mi, width, spp, k, walk_depth=walk_depth)
         images, seconds, samples = [], [], 0
         for seed in SEEDS:
             start = time.perf_counter()
@@ -81,13 +81,14 @@ def bench_noise(width=128, spp=4, passes=PASSES, progress=True):
     return rows
 
 
-def noise_table(rows, width):
+def noise_table(rows, width, walk_depth=0.0):
     """A Markdown table of :func:`bench_noise`'s rows."""
 
     def rgb(values):
         return "/".join(f"{100 * v:.2f}" for v in values)
 
-    lines = [f"The demo at {width}², each pass at a default render's budget; noise per object pixel (%, R/G/B), "
+    walk = f", walk_depth {walk_depth:g}" if walk_depth else ""
+    lines = [f"The demo at {width}²{walk}, each pass at a default render's budget; noise per object pixel (%, R/G/B), "
              "from two seeds", "",
              "| passes | spp | samples (all passes) | seconds | median | p95 | rms | median x sqrt(passes) |",
              "|---:|---:|---:|---:|---|---|---|---|"]

@@ -93,19 +93,22 @@ def bench_render_command(quick, runs, commands, scaling, as_json, progress):
               help="Samples per pixel of each pass (a render of k passes has k times as many).")
 @click.option("--passes", "passes", default="1,2,4,8", show_default=True,
               help="Pass counts, comma-separated, increasing.")
+@click.option("--walk-depth", type=click.FloatRange(0.0), default=0.0, show_default=True,
+              help="The renders' walk_depth (transport mean free paths; 0: the transport alone, inf: every walk to "
+                   "its end): the random walk's noise against passes.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the rows as JSON: passes, spp, samples, pixels, seconds, median, p95, rms, "
                    "median_sqrt_passes.")
 @PROGRESS
-def bench_noise_command(width, spp, passes, as_json, progress):
+def bench_noise_command(width, spp, passes, walk_depth, as_json, progress):
     """The image's sample noise against passes: it should fall as 1/sqrt(passes).
 
     The demo scene (40 mm whole-milk bunny, dielectric, floor, two lights), rendered in k passes of a default
     render's budget each (sample density, profile samples and --spp times k), twice with different seeds. Per object
     pixel and channel, the noise is |a - b| / sqrt(2) relative to the pair's mean; printed are its median, 95th
     percentile and root mean square over the object and the median x sqrt(k), constant where the noise falls as it
-    should. At --passes 1
-    and the demo's size (--width 800 --spp 16), the demo's own noise.
+    should. At --passes 1 and the demo's size (--width 800 --spp 16), the demo's own noise. With --walk-depth, the
+    noise of the random walk's render.
     """
     from ..bench.noise import bench_noise, noise_table
     from ..errors import ConvsssError
@@ -116,8 +119,8 @@ def bench_noise_command(width, spp, passes, as_json, progress):
         raise ConvsssError(f"--passes {passes!r}: give whole numbers of passes, e.g. 1,2,4") from None
     if not counts or any(v < 1 for v in counts) or list(counts) != sorted(set(counts)):
         raise ConvsssError(f"--passes {passes!r}: give increasing whole numbers >= 1")
-    rows = bench_noise(width, spp, counts, progress)
-    click.echo(json.dumps(rows, indent=1) if as_json else noise_table(rows, width))
+    rows = bench_noise(width, spp, counts, progress, walk_depth)
+    click.echo(json.dumps(rows, indent=1) if as_json else noise_table(rows, width, walk_depth))
 
 
 @bench.command("fit")
