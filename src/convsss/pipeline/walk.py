@@ -345,10 +345,10 @@ class RandomWalk:
             which, eta = self.classify(si)
             smooth = ~mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
             straight = ds.delta | self.straight_through
-            out = dr.dot(si.n, ray.d) > 0.0
-            through = inside & out & active_surface & straight & (which >= 0) & smooth & (dr.max(passed) == 0.0)
+            cos = dr.dot(si.n, ray.d)  # > 0: leaving along the outward normal
+            through = inside & (cos > 0.0) & active_surface & straight & (which >= 0) & smooth & (dr.max(passed) == 0.0)
             crossed |= through
-            cos_out = dr.abs(dr.dot(si.n, ray.d))
+            cos_out = dr.abs(cos)
             compression = cos_out / dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
             sigma_t = dr.select(medium.is_homogeneous(), mi.Color3f(mei.combined_extinction), 0.0)
             passed[through] = (fresnel_transmittance(eta, cos_out) * compression
