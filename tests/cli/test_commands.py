@@ -444,10 +444,10 @@ def test_the_largest_seed_renders_a_reference(scene_file, tmp_path):
     assert json.loads((tmp_path / "ref.json").read_text())["seed"] == 2**32 - 1
 
 
-def _interrupt(args, tmp_path, shown, wait=0.0, sig=signal.SIGINT):
-    """Run ``convsss ARGS``, send SIGINT (or ``sig``: SIGTERM) once stderr shows ``shown`` (and ``wait`` seconds
-    more): exit code 130 (143), ``interrupted`` (``terminated``), no traceback and no file written."""
-    proc = subprocess.Popen([sys.executable, "-m", "convsss", *args], stderr=subprocess.PIPE, text=True,
+def _interrupt(args, tmp_path, shown, wait=0.0, sig=signal.SIGINT, python=("-m", "convsss")):
+    """Run ``convsss ARGS`` (``python ARGS``), send SIGINT (or ``sig``: SIGTERM) once stderr shows ``shown`` (and
+    ``wait`` seconds more): exit code 130 (143), ``interrupted`` (``terminated``), no traceback and no file written."""
+    proc = subprocess.Popen([sys.executable, *python, *args], stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONPATH": _src_path()})
     started = ""
     while shown not in started:
@@ -482,6 +482,44 @@ def test_ctrl_c_ends_render_in_one_line_without_outputs(tmp_path, stage):
     _interrupt(["render", "--mesh", "bunny", "--material", "wholemilk", "--size-mm", "40", "--width", "96",
                 "--height", "96", "--spp", "256", "-o", str(tmp_path / "out" / "img"), "--transport", "exact",
                 "--profile-samples", "0"], tmp_path, stage)
+
+
+_BUNNY = ["--mesh", "bunny", "--material", "wholemilk", "--size-mm", "40", "--width", "96", "--height", "96"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("options, shown", [
+    (["--spp", "64", "--passes", "8"], "pass 2/8"),  # between passes (issue 51: it ran to the end, exit 0)
+    (["--spp", "256", "--transport", "volume"], "transport"),  # inside the volume's solve (the same)
+])
+def test_ctrl_c_ends_a_render_in_passes_or_in_the_volume(tmp_path, options, shown):
+    _interrupt(["render", *_BUNNY, *options, "-o", str(tmp_path / "out" / "img")], tmp_path, shown)
+
+
+@pytest.mark.slow
+def test_ctrl_c_at_the_write_stage_writes_nothing(tmp_path):
+    """Issue 51: a Ctrl-C at the write stage exited 0 with the outputs written. The writers are slowed here (each
+    file waits 30 s once written to its temporary), so that the signal lands while the first file is written."""
+    slowed = ("import time, convsss.outputs as outputs\n"
+              "write_files = outputs.write_files\n"
+              "def slowed(write):\n"
+              "    return lambda tmp: (write(tmp), time.sleep(30))\n"
+              "outputs.write_files = lambda writers: write_files({p: slowed(w) for p, w in writers.items()})\n"
+              "from convsss.cli import main\n"
+              "main()\n")
+    _interrupt(["render", *_BUNNY, "--spp", "4", "-o", str(tmp_path / "out" / "img")], tmp_path, "write", wait=1.0,
+               python=("-c", slowed))
+
+
+@pytest.mark.slow
+def test_ctrl_c_ends_a_fit(scene_file, tmp_path_factory, tmp_path):
+    """Issue 51: a fit once ran on 60 s after Ctrl-C, once to its end with its outputs written and exit 0."""
+    target = tmp_path_factory.mktemp("target") / "skin"
+    result = run("render", "--mesh", "bunny", "--material", "skin1", "--size-mm", 20, "--boundary", "null",
+                 "--width", 40, "--height", 32, "--spp", 2, "-o", target, "--no-progress")
+    assert result.exit_code == 0, result.output
+    _interrupt(["fit", str(scene_file), f"{target}.exr", "-o", str(tmp_path / "out" / "fitted"), "--spp", "2",
+                "--max-evaluations", "200"], tmp_path, "fit: evaluation")
 
 
 @pytest.mark.slow
