@@ -704,9 +704,14 @@ def test_edit_on_a_busy_port_is_refused_before_the_first_render(tmp_path):
 
 
 @pytest.mark.slow
-def test_ctrl_c_ends_the_editor_after_an_edit():
-    """Issue 51: after one edit (a render in a request's thread, which lets Mitsuba install its own SIGINT handler)
-    Ctrl-C only wound renders down and the server kept serving; now it ends, exit 130, in one line."""
+@pytest.mark.parametrize("requests", [
+    [("POST", "/api/update")],  # one edit
+    [("GET", "/"), ("GET", "/api/state"), ("GET", "/image.png"), ("GET", "/profile.png")],  # the page, loaded once
+])
+def test_ctrl_c_ends_the_editor_after_an_edit_or_the_page(requests):
+    """Issue 51: after one edit (a render in a request's thread, which lets Mitsuba install its own SIGINT handler),
+    and in a fresh editor after the page had loaded once, Ctrl-C only wound renders down and the server kept
+    serving; now it ends, exit 130, in one line."""
     import http.client
     import re
 
@@ -718,9 +723,11 @@ def test_ctrl_c_ends_the_editor_after_an_edit():
         line = proc.stdout.readline()
         port = int(re.search(r"http://127\.0\.0\.1:(\d+)/", line).group(1))
         connection = http.client.HTTPConnection("127.0.0.1", port, timeout=120)
-        connection.request("POST", "/api/update", json.dumps({"sigma_a": [0.2, 0.2, 0.2]}),
-                           {"Content-Type": "application/json"})
-        assert connection.getresponse().status == 200
+        for method, path in requests:
+            body = json.dumps({"sigma_a": [0.2, 0.2, 0.2]}) if method == "POST" else None
+            connection.request(method, path, body, {"Content-Type": "application/json"} if body else {})
+            response = connection.getresponse()
+            assert response.status == 200 and response.read()
         time.sleep(1.0)  # serve_forever's loop turns (0.5 s) between requests
         proc.send_signal(signal.SIGINT)
         stderr = proc.communicate(timeout=30)[1]
