@@ -153,7 +153,9 @@ def reference_to_files(source, output, *, spp=None, sensor=None, seed=0, pass_sp
     (:class:`~convsss.pipeline.reference.BlackPassWarning`); with ``strict`` it is raised, before anything is
     written.
     """
+    from .backend import load_mitsuba
     from .image import exr_writer, png_writer
+    from .pipeline.objects import check_surfaces
     from .pipeline.reference import BlackPassWarning, render_reference
 
     start = time.perf_counter()
@@ -161,6 +163,7 @@ def reference_to_files(source, output, *, spp=None, sensor=None, seed=0, pass_sp
     check_outputs([exr, png, info], [*source.inputs(), *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
     scene = source.load()
+    check_surfaces(load_mitsuba(), scene)  # an open mesh warns, as in `render`
     camera = pick_sensor(scene, sensor)
     total_spp = _spp(spp, source, camera)
     progress = progress or (lambda *args: None)

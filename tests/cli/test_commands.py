@@ -444,6 +444,18 @@ def test_the_largest_seed_renders_a_reference(scene_file, tmp_path):
     assert json.loads((tmp_path / "ref.json").read_text())["seed"] == 2**32 - 1
 
 
+def test_reference_warns_of_an_open_mesh_as_render_does(tmp_path):
+    """Issue 51: `render` warned that a translucent mesh is not watertight, `reference` said nothing."""
+    vertices = "".join(f"v {x} {y} {z}\n" for x in (0, 1) for y in (0, 1) for z in (0, 1))
+    faces = ["1 2 4 3", "5 7 8 6", "1 5 6 2", "3 4 8 7", "1 3 7 5"]  # a cube without its sixth face
+    (tmp_path / "open.obj").write_text(vertices + "".join(f"f {f}\n" for f in faces))
+    for command in ("render", "reference"):
+        result = run(command, "--mesh", tmp_path / "open.obj", "--material", "wholemilk", "--size-mm", 10, "--width",
+                     8, "--height", 8, "--spp", 1, "-o", tmp_path / command, "--no-progress")
+        assert result.exit_code == 0, result.output
+        assert "translucent mesh 'object' is not watertight" in result.stderr, (command, result.stderr)
+
+
 def _interrupt(args, tmp_path, shown, wait=0.0, sig=signal.SIGINT, python=("-m", "convsss")):
     """Run ``convsss ARGS`` (``python ARGS``), send SIGINT (or ``sig``: SIGTERM) once stderr shows ``shown`` (and
     ``wait`` seconds more): exit code 130 (143), ``interrupted`` (``terminated``), no traceback and no file written."""

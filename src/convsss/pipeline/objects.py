@@ -260,12 +260,23 @@ def _surface(mi, shape, name):
                            "consistently (e.g. Blender's Recalculate Outside)")
     if not watertight:
         warnings.warn(f"translucent mesh {name!r} is not watertight (some edges do not join exactly two faces): "
-                      "irradiance leaks through its holes and its inside is ill-defined", MeshWarning, stacklevel=4)
+                      "light leaks through its holes and its inside is ill-defined", MeshWarning, stacklevel=4)
     if volume < 0:
         warnings.warn(f"translucent mesh {name!r} has inward-facing normals; they are flipped for shading",
                       MeshWarning, stacklevel=4)
         return -1.0, watertight
     return 1.0, watertight
+
+
+def check_surfaces(mi, scene):
+    """Warn (or refuse) as :func:`find_translucent_objects` does for every translucent surface that does not bound a
+    volume: for a path tracer (``convsss reference``), which takes the scene as it is and never asks for objects."""
+    checked = set()
+    for name, shape, _ in scene_surfaces(mi, scene):
+        index = shape_index(mi, shape)
+        if shape.interior_medium() is not None and index not in checked:
+            checked.add(index)
+            _surface(mi, shape, name)
 
 
 def _check_span(obj, unit_mm):
