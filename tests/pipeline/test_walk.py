@@ -7,6 +7,7 @@ import pytest
 
 import convsss
 from convsss.pipeline.reference import reference_integrator, translucent_pixels
+from convsss.pipeline.walk import EACH_EMITTER
 from convsss.scene.materials import albedo_volume_dict, medium_dict, translucent
 
 RES, SPP = 32, 256
@@ -14,6 +15,13 @@ RES, SPP = 32, 256
 
 def _lights(mi, kind, radius):
     T = mi.ScalarTransform4f
+    if "+" in kind:  # several emitters: "area+environment"
+        return {f"{part}_light": light for part in kind.split("+") for light in _lights(mi, part, radius).values()}
+    if kind == "spheres":  # more emitters than the walk samples one by one: the scene chooses one
+        return {f"light{k}": {"type": "sphere", "center": [4 * radius * np.cos(k), 5 * radius, 4 * radius * np.sin(k)],
+                              "radius": 0.5 * radius,
+                              "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [10.0, 8.0, 6.0]}}}
+                for k in range(EACH_EMITTER + 1)}
     if kind == "point":
         return {"light": {"type": "point", "position": [3 * radius, 6 * radius, 4 * radius],
                           "intensity": {"type": "rgb", "value": [50 * radius**2] * 3}}}
@@ -62,6 +70,8 @@ def _compare(mi, scene):
     pytest.param("ketchup", "dielectric", "environment", marks=pytest.mark.slow),
     pytest.param("wholemilk", "roughdielectric", "area", marks=pytest.mark.slow),
     pytest.param("skin1", "null", "spot", marks=pytest.mark.slow),
+    ("skin1", "roughdielectric", "area+environment"),  # each emitter sampled: a hit weighs with its own density
+    pytest.param("wholemilk", "null", "spheres", marks=pytest.mark.slow),  # one chosen: its choice's odds too
 ])
 def test_walking_to_the_end_is_volpathmis(mi, sphere_scene, material, boundary, light):
     scene = sphere_scene(material=material, radius=1.0, boundary=boundary, res=RES, floor=True,

@@ -14,10 +14,11 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
 
   ``f_i`` the path's contribution in channel ``i`` and ``p_j`` its density had channel ``j`` drawn it (the one-sample
   balance heuristic over channels), tracked as the ratios ``p_j / f_i`` (:func:`_update`, a 3 x 3 matrix per lane);
-* at a scattering vertex, **next-event estimation** to an emitter (chosen by the scene) through null boundaries and
-  the media between, combined with **phase-function sampling** by the balance heuristic on the same ratios
-  (:func:`_mis`, Eq. W2); a dielectric boundary stops the shadow ray (the light there comes by the sampled
-  directions, as in ``volpathmis``);
+* at a scattering vertex, **next-event estimation** to every emitter of the scene (one sample each; past
+  :data:`EACH_EMITTER` emitters, to one the scene chooses) through null boundaries and the media between, combined
+  with **phase-function sampling** by the balance heuristic on the same ratios (:func:`_mis`, Eq. W2: a hit on an
+  emitter weighs with that emitter's own density then, its choice's probability included otherwise); a dielectric
+  boundary stops the shadow ray (the light there comes by the sampled directions, as in ``volpathmis``);
 * at a boundary, the scene's BSDF: a smooth or rough dielectric refracts out or reflects back in, a null one lets
   the path through into the next medium;
 * a delta light (point, spot, directional) behind a translucent object's smooth dielectric boundary, which no path
@@ -47,6 +48,9 @@ mi = load_mitsuba()
 
 #: The most scattering events a path makes inside media (the walk's cap; a path past it ends there).
 MAX_WALK = 100_000
+#: Up to this many emitters, every vertex samples each of them (no variance from choosing one; a shadow ray each);
+#: past it, one the scene chooses (each unrolls a shadow-ray loop into the walk's kernel).
+EACH_EMITTER = 4
 
 
 def _ones(n):
@@ -105,6 +109,9 @@ class RandomWalk:
         #: boundary (Eq. W4) where walks end in the field (``walk_depth`` finite); at ``inf`` only what no path
         #: reaches, so that the walk stays ``volpathmis``.
         self.straight_through = params.walk_depth < float("inf")
+        emitters = scene.emitters()
+        #: The emitters each vertex samples one by one, or ``[None]``: one the scene chooses.
+        self.lights = list(emitters) if 0 < len(emitters) <= EACH_EMITTER else [None]
         #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.
         self.field = None
         #: Counts since :meth:`reset`: ``paths`` traced, scattering ``events`` in media, paths ``ended`` in the
@@ -209,12 +216,13 @@ class RandomWalk:
             phase = mei.medium.phase_function()
             phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
             valid |= scatter
-            end_nee, end_uni, emitted, ds, crossed = self._emitter(_interaction(mei), medium, ratios, channel,
-                                                                   sampler, scatter)
-            phase_value, phase_pdf = phase.eval_pdf(phase_ctx, mei, ds.d, scatter)
-            end_nee = _update(end_nee, 1.0, phase_value, scatter)
-            end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, phase_pdf), phase_value, scatter)
-            result[scatter] += _mis(end_nee, end_uni) * emitted  # Eq. W2
+            for light in self.lights:
+                end_nee, end_uni, emitted, ds, crossed = self._emitter(_interaction(mei), medium, ratios, channel,
+                                                                       sampler, scatter, light)
+                phase_value, phase_pdf = phase.eval_pdf(phase_ctx, mei, ds.d, scatter)
+                end_nee = _update(end_nee, 1.0, phase_value, scatter)
+                end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, phase_pdf), phase_value, scatter)
+                result[scatter] += _mis(end_nee, end_uni) * emitted  # Eq. W2
             ratios_nee = _where(scatter, ratios, ratios_nee)
             wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
                                                        sampler.next_2d(scatter), scatter)
@@ -232,7 +240,10 @@ class RandomWalk:
             emitter = si.emitter(scene)
             seen = active_surface & (emitter != None)  # noqa: E711
             to_emitter = mi.DirectionSample3f(scene, si, last_scatter)
-            emitter_pdf = scene.pdf_emitter_direction(last_scatter, to_emitter, seen & ~direct)
+            if dr.hint(self.lights[0] is None, mode="scalar"):
+                emitter_pdf = scene.pdf_emitter_direction(last_scatter, to_emitter, seen & ~direct)
+            else:  # each emitter sampled: its own density, no choice
+                emitter_pdf = emitter.pdf_direction(last_scatter, to_emitter, seen & ~direct)
             ratios_nee = _update(ratios_nee, emitter_pdf, 1.0, seen & ~direct)
             radiance = emitter.eval(si, seen)
             seen &= ~straight_out  # the light that Eq. W4 took at the last scattering vertex
@@ -242,11 +253,13 @@ class RandomWalk:
             ctx = mi.BSDFContext()
             bsdf = si.bsdf(ray)
             lit = active_surface & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth) & (depth + 1 < self.max_depth)
-            end_nee, end_uni, emitted, ds, crossed = self._emitter(si, medium, ratios, channel, sampler, lit)
-            bsdf_value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), lit)
-            end_nee = _update(end_nee, 1.0, bsdf_value, lit)
-            end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, bsdf_pdf), bsdf_value, lit)
-            result[lit] += _mis(end_nee, end_uni) * emitted
+            for light in self.lights:
+                end_nee, end_uni, emitted, ds, crossed = self._emitter(si, medium, ratios, channel, sampler, lit,
+                                                                       light)
+                bsdf_value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), lit)
+                end_nee = _update(end_nee, 1.0, bsdf_value, lit)
+                end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, bsdf_pdf), bsdf_value, lit)
+                result[lit] += _mis(end_nee, end_uni) * emitted
 
             bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(active_surface), sampler.next_2d(active_surface),
                                           active_surface)
@@ -278,14 +291,18 @@ class RandomWalk:
         return result, valid
 
     @dr.syntax
-    def _emitter(self, origin, medium, ratios, channel, sampler, active):
-        """Next-event estimation from ``origin`` (an interaction in ``medium``): an emitter sample and its shadow ray
-        through null boundaries and the media between (a ratio-tracking transmittance, every channel's density
-        kept); ``(ratios as light sampling drew it, as the path's own sampling would, emitted L, the sample, where it
-        crossed a smooth boundary by Eq. W4)`` (no path's own sampling reaches the light that way)."""
+    def _emitter(self, origin, medium, ratios, channel, sampler, active, light=None):
+        """Next-event estimation from ``origin`` (an interaction in ``medium``): a sample of emitter ``light`` (None:
+        one the scene chooses) and its shadow ray through null boundaries and the media between (a ratio-tracking
+        transmittance, every channel's density kept); ``(ratios as light sampling drew it, as the path's own sampling
+        would, emitted L, the sample, where it crossed a smooth boundary by Eq. W4)`` (no path's own sampling reaches
+        the light that way)."""
         scene = self.scene
         with_nee, with_uni = ratios, ratios
-        ds, weight = scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
+        if light is None:
+            ds, weight = scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
+        else:
+            ds, weight = light.sample_direction(origin, sampler.next_2d(active), active)
         emitted = dr.select(ds.pdf == 0.0, 0.0, weight * ds.pdf)
         active = mi.Bool(active & (ds.pdf != 0.0))
         with_nee = _update(with_nee, ds.pdf, 1.0, active)
