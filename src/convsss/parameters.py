@@ -18,6 +18,7 @@ class Parameter:
     Numbers must lie in ``[low, high]`` (``(low, high]`` with ``low_open``); strings (and numbers, when given) must
     be one of ``choices``; a number may be ``inf`` only where ``infinite``. A ``None`` default makes the parameter
     optional. ``exposed = False`` marks a value the renderer sets itself (e.g. the pixel footprint), not a user option.
+    A number parameter also takes each of its ``words`` (e.g. ``"auto"``), kept as the word.
     """
 
     name: str
@@ -30,6 +31,7 @@ class Parameter:
     choices: tuple = ()
     exposed: bool = True
     infinite: bool = False
+    words: tuple = ()
 
     def allowed(self):
         """What is allowed, in words (for errors and help).
@@ -51,7 +53,8 @@ class Parameter:
         if self.high is not None:
             bounds.append(f"<= {_show(self.high)}")
         whole = "a whole number" if self.kind is int else "a number"
-        return whole + (" " + " and ".join(bounds) if bounds else "") + (", or inf" if self.infinite else "")
+        named = ["inf"] * self.infinite + list(self.words)
+        return whole + (" " + " and ".join(bounds) if bounds else "") + (", or " + " or ".join(named) if named else "")
 
     def check(self, value):
         """``value`` converted to ``kind`` if it is allowed; else a one-line :class:`ConvsssError`."""
@@ -61,6 +64,8 @@ class Parameter:
         if self.kind is str:
             if not isinstance(value, str) or (self.choices and value not in self.choices):
                 raise bad
+            return value
+        if isinstance(value, str) and value in self.words:
             return value
         if isinstance(value, (bool, str)):
             raise bad

@@ -97,6 +97,26 @@ def _instances(mi, shape, transforms):
                            for k, t in enumerate(transforms)}}
 
 
+def test_the_mean_chord_and_where_diffusion_holds(mi, tmp_path):
+    """The mean chord 4V/A: 4/3 of a sphere's radius (an instance scaled by 2: twice it), 2/3 of a cube's side; diffusion
+    holds on a 40 mm marble sphere (about 60 transport mean free paths across its chord, albedo 0.998), not on a 4 mm
+    one (6), nor on a 40 mm skin1 sphere (albedo 0.68 in blue)."""
+    marble, skin = convsss.material("marble"), convsss.material("skin1")
+    (sphere,) = _objects(mi, {"s": translucent({"type": "sphere", "radius": 20.0}, marble)})
+    assert sphere.chord_mm == pytest.approx(4 / 3 * 20.0, rel=1e-6) and sphere.diffusion_holds()
+    (small,) = _objects(mi, {"s": translucent({"type": "sphere", "radius": 2.0}, marble)})
+    (skin_sphere,) = _objects(mi, {"s": translucent({"type": "sphere", "radius": 20.0}, skin)})
+    assert not small.diffusion_holds() and not skin_sphere.diffusion_holds()
+    T = mi.ScalarTransform4f
+    (scaled,) = _objects(mi, _instances(mi, {"type": "sphere"}, [T().scale(2.0)]))
+    assert scaled.chord_mm == pytest.approx(4 / 3 * 2.0, rel=1e-4)
+    (cube,) = _objects(mi, {"s": translucent(_obj(tmp_path / "cube.obj", CUBE_FACES), skin)}, unit_mm=3.0)
+    assert cube.chord_mm == pytest.approx(2 / 3 * 3.0, rel=1e-6)
+    with pytest.warns(MeshWarning, match="not watertight"):
+        (opened,) = _objects(mi, {"s": translucent(_obj(tmp_path / "open.obj", CUBE_FACES[:-1]), skin)})
+    assert opened.volume_mm3 == 0.0 and opened.chord_mm == pytest.approx(1.0)  # no volume: the box's least side
+
+
 def test_each_instance_is_an_object(mi):
     T = mi.ScalarTransform4f
     objects = _objects(mi, _instances(mi, {"type": "sphere"}, [T().translate([-3, 0, 0]), T().translate([3, 0, 0])]))

@@ -38,6 +38,8 @@ def test_from_mapping_takes_only_known_names():
     ({"profile": "/nonexistent/profile.csv"}, "profile file"),
     ({"single_scattering": "exact"}, "single_scattering='exact'"),
     ({"single_scattering": "traced", "profile_total": "model"}, "single_scattering=traced needs profile_total=exact"),
+    ({"walk_depth": "automatic"}, "walk_depth='automatic' is not allowed: it must be a number >= 0, or inf or auto"),
+    ({"walk_depth": -1.0}, "walk_depth=-1"),
 ])
 def test_bad_values_say_what_is_allowed(kwargs, message):
     with pytest.raises(ConvsssError, match=message):
@@ -68,3 +70,19 @@ def test_a_parameter_of_another_transport_warns_that_it_has_no_effect(mi):
     with warnings.catch_warnings():
         warnings.simplefilter("error", IgnoredParameterWarning)
         mi.load_dict({"type": "convsss", "transport": "convolution", "layers": 8, "downsample": 0.5})
+
+
+def test_walk_depth_auto_walks_where_diffusion_fails_on_some_object():
+    from types import SimpleNamespace
+
+    from convsss.pipeline.params import resolve_walk_depth
+
+    holds, fails = (SimpleNamespace(diffusion_holds=lambda answer=answer: answer) for answer in (True, False))
+    auto = RenderParams(walk_depth="auto", layers=4)
+    assert auto.walk_depth == "auto"
+    transport, straight = resolve_walk_depth(auto, [holds, holds])
+    assert transport.walk_depth == 0.0 and not straight and transport.layers == 4
+    walks, straight = resolve_walk_depth(auto, [holds, fails])
+    assert walks.walk_depth == float("inf") and straight and walks.layers == 4
+    given = RenderParams(walk_depth=4.0)
+    assert resolve_walk_depth(given, [fails]) == (given, False)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import convsss
+from convsss.pipeline.path_tracer import MAX_EMITTERS_SUMMED
 from convsss.pipeline.reference import reference_integrator, translucent_pixels
-from convsss.pipeline.walk import EACH_EMITTER
 from convsss.scene.materials import albedo_volume_dict, medium_dict, translucent
 
 RES, SPP = 32, 256
@@ -21,7 +21,7 @@ def _lights(mi, kind, radius):
         return {f"light{k}": {"type": "sphere", "center": [4 * radius * np.cos(k), 5 * radius, 4 * radius * np.sin(k)],
                               "radius": 0.5 * radius,
                               "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [10.0, 8.0, 6.0]}}}
-                for k in range(EACH_EMITTER + 1)}
+                for k in range(MAX_EMITTERS_SUMMED + 1)}
     if kind == "point":
         return {"light": {"type": "point", "position": [3 * radius, 6 * radius, 4 * radius],
                           "intensity": {"type": "rgb", "value": [50 * radius**2] * 3}}}
@@ -129,3 +129,23 @@ def test_light_sampled_straight_through_a_smooth_boundary_keeps_the_mean_of_volp
     (m_ours, e_ours), (m_truth, e_truth) = (_means_and_noise([a[:, None], b[:, None]]) for a, b in (ours, truth))
     assert np.all(np.abs(m_ours - m_truth) <= 0.01 * m_truth + 4 * np.hypot(e_ours, e_truth)), (m_ours / m_truth)
     assert np.all(e_ours < 0.5 * e_truth), (e_ours, e_truth)  # at a quarter of the samples
+
+
+def test_walk_depth_auto_walks_where_diffusion_fails_and_keeps_the_transport_where_it_holds(mi, sphere_scene):
+    """auto: a 4 mm skin1 sphere (about 3 transport mean free paths across its chord) walks to the end, every light
+    straight through its smooth boundary (Eq. W4); a 40 mm marble one renders with the transport, as walk_depth 0."""
+    rendered = {}
+    for material, radius in (("skin1", 2.0), ("marble", 20.0)):
+        scene = mi.load_dict(sphere_scene(material=material, radius=radius, boundary="dielectric", res=16,
+                                          emitters=_lights(mi, "sphere", radius)))
+        auto = mi.load_dict({"type": "convsss", "walk_depth": "auto"})
+        image = np.array(mi.render(scene, integrator=auto, spp=4, seed=1))
+        stats = auto.stats
+        rendered[material] = stats["walk_depth"], "walk" in stats, stats["parameters"]["walk_depth"]
+        walk = auto.prepare(scene, 0).walk
+        assert (walk is not None and walk.straight_through) == (material == "skin1")
+        auto.release()
+        if material == "marble":
+            zero = mi.load_dict({"type": "convsss", "walk_depth": 0.0})
+            np.testing.assert_array_equal(image, np.array(mi.render(scene, integrator=zero, spp=4, seed=1)))
+    assert rendered == {"skin1": ("inf", True, "auto"), "marble": ("0", False, "auto")}

@@ -36,6 +36,12 @@ BOUNDARY_CLASSES = {"Null": "null", "SmoothDielectric": "dielectric", "RoughDiel
 #: The object may span at least / at most this many mean free paths before the units look wrong (a 2 m panel of
 #: spectralon spans 4e4; a 40 mm bunny made 1000 times too large spans 1e5 in milk). It renders either way.
 SPAN_LIMITS = (1e-3, 5e4)
+#: Where diffusion holds (:meth:`TranslucentObject.diffusion_holds`): transport mean free paths across the object's
+#: mean chord, and the least reduced albedo. Measured (docs/benchmarks.md, bench walk): the transport is within 2 %
+#: of volpathmis on a 40 mm marble bunny (29-35 across, albedo 0.998) and 5-30 % off on a 40 mm skin1 bunny lit from
+#: behind (10-20 across, albedo 0.68-0.96), a 4 mm milk bunny (3-5 across) and a 20 mm ketchup bunny (albedo 0.02-0.75).
+DIFFUSION_SPAN = 20.0
+DIFFUSION_ALBEDO = 0.95
 #: Analytic shapes (Mitsuba class names) that bound a volume; disks, rectangles and cylinders are open.
 CLOSED_ANALYTIC = ("Sphere",)
 #: Stratified samples that estimate the world area of a shape under a map that is no similarity.
@@ -68,6 +74,7 @@ class TranslucentObject:
     closed : bool                the surface is known to bound a volume (a watertight mesh, a sphere)
     bbox_mm : (2, 3) array       world-space bounding box in mm
     area_mm2 : float             world surface area in mm^2
+    volume_mm3 : float           the volume it bounds in mm^3 (0 where the surface is not closed)
     classes : MediumClasses      a heterogeneous interior's classes (:mod:`.media`), None for a homogeneous one;
                                  ``material`` is then their mean
     class_profiles : tuple       the classes' profiles, in their order
@@ -88,6 +95,7 @@ class TranslucentObject:
     closed: bool
     bbox_mm: np.ndarray
     area_mm2: float
+    volume_mm3: float = 0.0
     classes: object = None
     class_profiles: tuple = ()
     sampling: Material = None
@@ -130,6 +138,23 @@ class TranslucentObject:
         """The largest side of the bounding box (mm)."""
         return float(np.max(self.bbox_mm[1] - self.bbox_mm[0]))
 
+    @property
+    def chord_mm(self):
+        """The mean chord length ``4 V / A`` (Cauchy's formula; for a body that is not convex, the mean of its chords'
+        pieces inside): how thick the object is on average, its thin parts weighed in (a sphere's: 4/3 of its
+        radius). Where the surface bounds no known volume, the bounding box's shortest side."""
+        if self.closed and self.volume_mm3 > 0.0:
+            return 4.0 * self.volume_mm3 / self.area_mm2
+        return float(np.min(self.bbox_mm[1] - self.bbox_mm[0]))
+
+    def diffusion_holds(self):
+        """Whether diffusion describes this object's light in every channel of every material in it: at least
+        :data:`DIFFUSION_SPAN` transport mean free paths across its mean chord (:attr:`chord_mm`) and a reduced
+        albedo of at least :data:`DIFFUSION_ALBEDO`. Where it does not, walks are also short (they leave a thin
+        object, or are absorbed, within a few hundred events): what ``walk_depth = auto`` walks."""
+        return all(bool(np.all(m.sigma_t_prime * self.chord_mm >= DIFFUSION_SPAN)
+                        and np.all(m.albedo_prime >= DIFFUSION_ALBEDO)) for m in self.materials)
+
     def spans(self):
         """How many reduced mean free paths and diffusion lengths the object spans, per RGB channel."""
         with np.errstate(divide="ignore"):
@@ -139,7 +164,8 @@ class TranslucentObject:
     def summary(self):
         """JSON-ready description for the render statistics."""
         return {"name": self.name, "boundary": self.boundary, "eta": self.eta, "area_mm2": self.area_mm2,
-                "extent_mm": self.extent_mm, "bbox_mm": self.bbox_mm.tolist(),
+                "extent_mm": self.extent_mm, "chord_mm": self.chord_mm, "diffusion_holds": self.diffusion_holds(),
+                "bbox_mm": self.bbox_mm.tolist(),
                 "sigma_s_prime_per_mm": self.material.sigma_s_prime.tolist(),
                 "sigma_a_per_mm": self.material.sigma_a.tolist(),
                 "profile": repr(self.profile), **self.spans()}
@@ -244,15 +270,19 @@ def mesh_topology(shape):
 
 
 def _surface(mi, shape, name):
-    """``(orientation, closed)``: +1 if the outward normal is the shape's normal, -1 if a closed mesh is wound
-    inwards; whether the shape is known to bound a volume. Warns on open or unknown surfaces."""
+    """``(orientation, closed, volume)``: +1 if the outward normal is the shape's normal, -1 if a closed mesh is wound
+    inwards; whether the shape is known to bound a volume; that volume in the shape's own space (0 if not closed).
+    Warns on open or unknown surfaces."""
     if not has_vertices(shape):
         closed = shape.class_name() in CLOSED_ANALYTIC
         if not closed:
             warnings.warn(f"translucent shape {name!r} is a {shape.class_name()!r}, not known to be a closed "
                           "surface: the diffusion model needs an object that bounds a volume", MeshWarning,
                           stacklevel=4)
-        return 1.0, closed
+        box = shape.bbox()  # a sphere, scaled by its transform: the ellipsoid its box holds
+        with np.errstate(invalid="ignore", over="ignore"):  # an infinite one is refused once its box is known
+            volume = float(np.pi / 6.0 * np.prod(np.asarray(box.max) - np.asarray(box.min))) if closed else 0.0
+        return 1.0, closed, volume
     watertight, volume, miswound = mesh_topology(shape)
     if miswound:
         raise ConvsssError(f"translucent mesh {name!r} has faces wound both ways ({miswound} edges traversed twice in "
@@ -264,8 +294,8 @@ def _surface(mi, shape, name):
     if volume < 0:
         warnings.warn(f"translucent mesh {name!r} has inward-facing normals; they are flipped for shading",
                       MeshWarning, stacklevel=4)
-        return -1.0, watertight
-    return 1.0, watertight
+        return -1.0, watertight, -volume if watertight else 0.0
+    return 1.0, watertight, volume if watertight else 0.0
 
 
 def check_surfaces(mi, scene):
@@ -563,6 +593,7 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
                                 shape_index=index, instance_index=0 if instance is None else shape_index(mi, instance),
                                 to_world=to_world, orientation=surfaces[index][0], closed=surfaces[index][1],
                                 bbox_mm=bbox_mm, area_mm2=world_area(shape, to_world) * unit_mm**2,
+                                volume_mm3=surfaces[index][2] * abs(np.linalg.det(to_world[:3, :3])) * unit_mm**3,
                                 classes=classes, class_profiles=() if classes is None else tuple(
                                     resolve_profile(spec, m, total, orders) for m in classes.materials))
         if not (np.all(np.isfinite(obj.bbox_mm)) and np.isfinite(obj.area_mm2)):

@@ -6,6 +6,8 @@ a bad value gets the same one-line :class:`~convsss.errors.ConvsssError` everywh
 convolution, ``epsilon`` of the hierarchical method): every declaration has one default, stated once.
 """
 
+import math
+
 from ..errors import ConvsssError
 from ..parameters import Parameter, check_parameters
 from ..profiles.incidence import Orders
@@ -127,7 +129,10 @@ def render_parameters():
                   "in the diffusion field solved on the object's volume where it scatters at least this many "
                   "transport mean free paths (1/sigma_t') below the surface, in the channels where diffusion holds. "
                   "0 renders with the transport alone (paper Eq. 7); inf follows every walk to its end, which is "
-                  "Mitsuba's volpathmis for those objects.", low=0.0, infinite=True),
+                  "Mitsuba's volpathmis for those objects. auto: the transport where diffusion holds on every "
+                  "object (at least 20 transport mean free paths across its mean chord 4V/A, reduced albedo at least "
+                  "0.95), else walks to their end with every light sampled straight through smooth boundaries (Eq. "
+                  "W4): where diffusion fails walks are short.", low=0.0, infinite=True, words=("auto",)),
         Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
                   "light; -1 is unbounded with Russian roulette; 0 is not allowed).", low=-1),
         Parameter("rr_depth", int, 5, "Depth from which Russian roulette may end paths.", low=1),
@@ -179,6 +184,18 @@ def plugin_parameters():
         lines += [f" * - {p.name}", f"   - |{kind}|", f"   - {p.help}{where}{allowed}",
                   f"     (Default: {default})", ""]
     return "\n".join(lines)
+
+
+def resolve_walk_depth(params, objects):
+    """``(params, straight)``: ``params`` with ``walk_depth = auto`` made a number for the translucent ``objects``: 0
+    (the transport) where diffusion holds on every one (:meth:`~.objects.TranslucentObject.diffusion_holds`), else inf;
+    ``straight`` whether the walks then take every light straight through smooth boundaries (Eq. W4), which auto's do
+    (at inf otherwise only a delta light's, so that the walk stays ``volpathmis``). Other params are returned as
+    they are."""
+    if params.walk_depth != "auto":
+        return params, False
+    walk = not all(obj.diffusion_holds() for obj in objects)
+    return RenderParams(**{**params.to_dict(), "walk_depth": math.inf if walk else 0.0}), walk
 
 
 class IgnoredParameterWarning(UserWarning):

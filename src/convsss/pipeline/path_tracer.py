@@ -125,9 +125,12 @@ class PathTracer:
     params : RenderParams
     stop : callable, optional
         Asked between bounces; when it returns True the paths end there (Ctrl-C during Mitsuba's render).
+    straight : bool
+        Whether walks take every light straight through smooth boundaries (Eq. W4) at any ``walk_depth``
+        (:func:`~.params.resolve_walk_depth`).
     """
 
-    def __init__(self, scene, objects, params, stop=None):
+    def __init__(self, scene, objects, params, stop=None, straight=False):
         self.scene, self.objects, self.params = scene, objects, params
         self.stop = stop
         #: Each object's exit gain (:class:`Leaving`), ``None`` with ``incidence`` normal (paper Eq. 7 alone).
@@ -153,8 +156,10 @@ class PathTracer:
         self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
         #: The objects a shadow ray passes, dimmed (index-matched boundary, homogeneous interior): :meth:`_shadow`.
         self.see_through = [obj.boundary == "null" and obj.classes is None for obj in objects]
-        #: With ``walk_depth`` > 0, the camera's paths walk through the objects' media (:mod:`.walk`).
-        self.walk = RandomWalk(scene, params, self.classify) if params.walk_depth > 0 else None
+        #: With ``walk_depth`` > 0, the camera's paths walk through the objects' media (:mod:`.walk`); with
+        #: ``straight``, every light reaches them straight through smooth boundaries (walk_depth auto's walks).
+        self.walk = (RandomWalk(scene, params, self.classify, self.per_emitter, straight) if params.walk_depth > 0
+                     else None)
         self.attach([None] * len(objects))
 
     def attach(self, transports, screen=None, field=None):

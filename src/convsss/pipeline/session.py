@@ -24,6 +24,7 @@ render may reuse (:meth:`RenderSession.reuse`), what an edit rebuilds (:meth:`Re
 """
 
 import hashlib
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -40,8 +41,8 @@ from .camera import check_camera, first_hits, sensor_frame
 from .field import diffusion_field
 from .irradiance import keeps_irradiance
 from .lighting import light_samples
-from .objects import find_translucent_objects
-from .params import RenderParams, parse_aovs, reads_transports, render_parameters
+from .objects import check_lights_outside, find_translucent_objects
+from .params import RenderParams, parse_aovs, reads_transports, render_parameters, resolve_walk_depth
 from .passes import build_transports, translucent_passes
 from .path_tracer import PathTracer
 from .plan import plan_samples
@@ -156,6 +157,8 @@ class RenderSession:
 
     def __init__(self, params, stop, announce):
         self.params, self.stop, self.announce = params, stop, announce
+        #: What the last :meth:`survey` renders with: ``(params, straight)`` of :func:`~.params.resolve_walk_depth`.
+        self.walking = (params, False)
         self.prepared = self.tracer = self.aovs = None
         self.keep = False
         self.stats = {}
@@ -180,7 +183,11 @@ class RenderSession:
         seen through the pixel centres, and the sampling plan (one-line errors before anything is drawn)."""
         p = self.params
         objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders,
-                                           lights_inside=p.walk_depth == float("inf"))
+                                           lights_inside=p.walk_depth in ("auto", math.inf))
+        self.walking = resolve_walk_depth(p, objects)
+        if p.walk_depth == "auto" and self.walking[0].walk_depth == 0.0:  # the transport after all
+            check_lights_outside(mi, scene, objects, p.unit_mm)
+        p = self.walking[0]
         check_camera(sensor)
         frame = sensor_frame(sensor, p.unit_mm)
         seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
@@ -190,7 +197,7 @@ class RenderSession:
     def walks_alone(self):
         """Whether the render needs none of stages 2-5: every walk goes to its end (``walk_depth`` inf) and no AOV
         asks for the transports' exitance or the samples' irradiance."""
-        return self.params.walk_depth == float("inf") and not reads_transports(self.params.aovs)
+        return self.walking[0].walk_depth == math.inf and not reads_transports(self.params.aovs)
 
     def _attach(self, tracer, transports, screen, diffusion=None):
         """``tracer`` reads ``transports``, ``screen`` and the ``diffusion`` field from now on; the AOVs read the
@@ -202,24 +209,25 @@ class RenderSession:
     def prepare(self, scene, sensor, seed=0, survey=None):
         """Stages 1-5 for ``sensor``; ``survey``: a :meth:`survey` of the same scene, sensor and parameters to reuse
         (the passes of one render share it). Returns the path tracer, its transports attached."""
-        p = self.params
+        asked = self.params.to_dict()
         fingerprint = scene_fingerprint(scene, sensor)
         timer, stage = self._timed()
         with stage("samples"):
             objects, frame, seen, plan = survey if survey is not None else self.survey(scene, sensor)
+        p, straight = self.walking = resolve_walk_depth(self.params, objects)  # a survey given may hold new materials
         shown = [objects[q.index] for q in plan.objects]
         shown_at = [seen[q.index] for q in plan.objects]
         cells = [q.pixel_footprint_mm for q in plan.objects]
         per_object = [{**obj.summary(), **q.summary(obj.area_mm2)} for obj, q in zip(shown, plan.objects)]
-        tracer = PathTracer(scene, shown, p, stop=self.stop)
+        tracer = PathTracer(scene, shown, p, stop=self.stop, straight=straight)
         if self.walks_alone:  # the walk reaches every interior itself: no samples, irradiance or transports
             self._attach(tracer, [None] * len(shown), None)
-            self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object,
-                          "hidden": list(plan.hidden), "samples": 0, "translucent_passes": 0,
+            self.stats = {"parameters": asked, "walk_depth": f"{p.walk_depth:g}", "seconds": dict(timer),
+                          "objects": per_object, "hidden": list(plan.hidden), "samples": 0, "translucent_passes": 0,
                           "screen_exitance": {"usable": False, "queries": 0}}
             self.prepared = PreparedState(scene, sensor, as_seed(seed), frame, shown, shown_at, cells, None,
                                           [None] * len(shown), survey=(objects, frame, seen, plan),
-                                          params=p.to_dict(), fingerprint=fingerprint)
+                                          params=asked, fingerprint=fingerprint)
             return self.tracer
         lighting = light_samples(scene, objects, plan, p, as_seed(seed), tracer, stage, self.stop)
         transports = build_transports(lighting.samples, lighting.irradiance, shown, cells, frame, p, stage)
@@ -236,12 +244,12 @@ class RenderSession:
         with stage("screen"):
             screen = ScreenExitance(sensor, shown, shown_at, transports, p.unit_mm)
         self._attach(tracer, transports, screen, diffusion)
-        self.stats = {"parameters": p.to_dict(), "seconds": dict(timer), "objects": per_object,
-                      "hidden": list(plan.hidden), "samples": int(sum(o["samples"] for o in per_object)),
-                      "translucent_passes": passes,
+        self.stats = {"parameters": asked, "walk_depth": f"{p.walk_depth:g}", "seconds": dict(timer),
+                      "objects": per_object, "hidden": list(plan.hidden),
+                      "samples": int(sum(o["samples"] for o in per_object)), "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
         self.prepared = PreparedState(scene, sensor, as_seed(seed), frame, shown, shown_at, cells, lighting,
-                                      transports, diffusion, survey=(objects, frame, seen, plan), params=p.to_dict(),
+                                      transports, diffusion, survey=(objects, frame, seen, plan), params=asked,
                                       fingerprint=fingerprint)
         return self.tracer
 
@@ -322,14 +330,14 @@ class RenderSession:
             self.params = params
         if state.lighting is None:  # prepared for walks alone: the stages it skipped, now
             return self.reprepare(objects)
-        p = self.params
+        p, straight = self.walking = resolve_walk_depth(self.params, objects)
         if not all(keeps_irradiance(old.material, new.material, p.incidence, p.orders)
                    for new, old in zip(objects, state.objects)):  # the same eta: only the albedo can differ
             raise ConvsssError("retransport keeps the samples' irradiance, which weights the light by the albedo's "
                                "gain (incidence = oblique, or single scattering traced): call prepare() for a new "
                                "reduced albedo")
         timer, stage = self._timed()
-        tracer = PathTracer(state.scene, objects, p, stop=self.stop)
+        tracer = PathTracer(state.scene, objects, p, stop=self.stop, straight=straight)
         transports = build_transports(state.samples, state.irradiance, objects, state.cells, state.frame, p, stage)
         transports, _, passes = translucent_passes(transports, state.lighting, tracer, p.indirect_passes, stage,
                                                    self.stop)
@@ -338,10 +346,12 @@ class RenderSession:
         with stage("screen"):
             screen = ScreenExitance(state.sensor, objects, state.visible, transports, p.unit_mm)
         self._attach(tracer, transports, screen, diffusion)
-        state.objects, state.transports, state.diffusion, state.params = objects, transports, diffusion, p.to_dict()
+        state.objects, state.transports, state.diffusion = objects, transports, diffusion
+        state.params = self.params.to_dict()
         for summary, obj in zip(self.stats.get("objects", []), objects):
             summary.update(obj.summary())
-        self.stats.update(parameters=p.to_dict(), seconds=dict(timer), translucent_passes=passes,
+        self.stats.update(parameters=self.params.to_dict(), walk_depth=f"{p.walk_depth:g}", seconds=dict(timer),
+                          translucent_passes=passes,
                           screen_exitance={"usable": screen.usable, "queries": screen.queries})
         return self.tracer
 
@@ -366,7 +376,8 @@ class RenderSession:
         for new, q in zip(objects, plan.objects):
             every[q.index] = new
         if replan:
-            plan = plan_samples(state.scene, state.sensor, frame, every, seen, self.params)
+            plan = plan_samples(state.scene, state.sensor, frame, every, seen,
+                                resolve_walk_depth(self.params, every)[0])
         return self.prepare(state.scene, state.sensor, state.seed, survey=(every, frame, seen, plan))
 
     def checkpoint(self):

@@ -15,10 +15,11 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   ``f_i`` the path's contribution in channel ``i`` and ``p_j`` its density had channel ``j`` drawn it (the one-sample
   balance heuristic over channels), tracked as the ratios ``p_j / f_i`` (:func:`_update`, a 3 x 3 matrix per lane);
 * at a scattering vertex, **next-event estimation** to every emitter of the scene (one sample each; past
-  :data:`EACH_EMITTER` emitters, to one the scene chooses) through null boundaries and the media between, combined
-  with **phase-function sampling** by the balance heuristic on the same ratios (:func:`_mis`, Eq. W2: a hit on an
-  emitter weighs with that emitter's own density then, its choice's probability included otherwise); a dielectric
-  boundary stops the shadow ray (the light there comes by the sampled directions, as in ``volpathmis``);
+  :data:`~.path_tracer.MAX_EMITTERS_SUMMED` emitters, to one the scene chooses) through null boundaries and the
+  media between, combined with **phase-function sampling** by the balance heuristic on the same ratios
+  (:func:`_mis`, Eq. W2: a hit on an emitter weighs with that emitter's own density then, its choice's probability
+  included otherwise); a dielectric boundary stops the shadow ray (the light there comes by the sampled directions,
+  as in ``volpathmis``);
 * at a boundary, the scene's BSDF: a smooth or rough dielectric refracts out or reflects back in, a null one lets
   the path through into the next medium;
 * a delta light (point, spot, directional) behind a translucent object's smooth dielectric boundary, which no path
@@ -48,9 +49,6 @@ mi = load_mitsuba()
 
 #: The most scattering events a path makes inside media (the walk's cap; a path past it ends there).
 MAX_WALK = 100_000
-#: Up to this many emitters, every vertex samples each of them (no variance from choosing one; a shadow ray each);
-#: past it, one the scene chooses (each unrolls a shadow-ray loop into the walk's kernel).
-EACH_EMITTER = 4
 
 
 def _ones(n):
@@ -101,17 +99,17 @@ def _interaction(source):
 class RandomWalk:
     """The volumetric paths of one scene (module doc); :meth:`trace` gives their radiance."""
 
-    def __init__(self, scene, params, classify):
+    def __init__(self, scene, params, classify, each_emitter=True, straight=False):
         self.scene, self.classify = scene, classify
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         self.rr_depth = params.rr_depth
         #: Every emitter's light, not just a delta light's, reaches a scattering vertex straight through a smooth
-        #: boundary (Eq. W4) where walks end in the field (``walk_depth`` finite); at ``inf`` only what no path
-        #: reaches, so that the walk stays ``volpathmis``.
-        self.straight_through = params.walk_depth < float("inf")
-        emitters = scene.emitters()
-        #: The emitters each vertex samples one by one, or ``[None]``: one the scene chooses.
-        self.lights = list(emitters) if 0 < len(emitters) <= EACH_EMITTER else [None]
+        #: boundary (Eq. W4) where walks end in the field (``walk_depth`` finite) or with ``straight`` (walk_depth
+        #: auto's walks); at ``inf`` only what no path reaches, so that the walk stays ``volpathmis``.
+        self.straight_through = params.walk_depth < float("inf") or straight
+        #: The emitters each vertex samples one by one (``each_emitter``: a shadow ray each, and a shadow-ray loop
+        #: each in the walk's kernel), or ``[None]``: one the scene chooses.
+        self.lights = list(scene.emitters()) if each_emitter and scene.emitters() else [None]
         #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.
         self.field = None
         #: Counts since :meth:`reset`: ``paths`` traced, scattering ``events`` in media, paths ``ended`` in the
