@@ -98,9 +98,9 @@ def _instances(mi, shape, transforms):
 
 
 def test_the_mean_chord_and_where_diffusion_holds(mi, tmp_path):
-    """The mean chord 4V/A: 4/3 of a sphere's radius (an instance scaled by 2: twice it), 2/3 of a cube's side; diffusion
-    holds on a 40 mm marble sphere (about 60 transport mean free paths across its chord, albedo 0.998), not on a 4 mm
-    one (6), nor on a 40 mm skin1 sphere (albedo 0.68 in blue)."""
+    """The mean chord 4V/A: 4/3 of a sphere's radius (an instance scaled by 2: twice it), 2/3 of a cube's side;
+    diffusion holds on a 40 mm marble sphere (about 60 transport mean free paths across its chord, albedo 0.998), not
+    on a 4 mm one (6), nor on a 40 mm skin1 sphere (albedo 0.68 in blue)."""
     marble, skin = convsss.material("marble"), convsss.material("skin1")
     (sphere,) = _objects(mi, {"s": translucent({"type": "sphere", "radius": 20.0}, marble)})
     assert sphere.chord_mm == pytest.approx(4 / 3 * 20.0, rel=1e-6) and sphere.diffusion_holds()
