@@ -13,7 +13,8 @@ def mi():
 
 @pytest.fixture(scope="session")
 def sphere_scene(mi):
-    """``sphere_scene(**options)`` -> a scene dictionary: a translucent sphere, a point light, a 48x48 camera."""
+    """``sphere_scene(**options)`` -> a scene dictionary: a translucent sphere, a point light, a 48x48 camera; its
+    integrator renders with the transport (walk_depth 0) unless ``integrator`` says otherwise."""
 
     def make(material="skin1", radius=2.0, boundary="null", integrator=None, res=48, spp=2, emitters=None,
              floor=False, extra=None, fov=30.0, unit_mm=1.0):
@@ -24,7 +25,7 @@ def sphere_scene(mi):
         integrator = {"unit_mm": unit_mm, **(integrator or {})} if unit_mm != 1.0 else (integrator or {})
         scene = {
             "type": "scene",
-            "integrator": {"type": "convsss", **integrator},
+            "integrator": {"type": "convsss", "walk_depth": 0.0, **integrator},
             "sensor": {"type": "perspective", "fov": fov,
                        "to_world": T().look_at(origin=[0, 2 * radius, 8 * radius], target=[0, 0, 0], up=[0, 1, 0]),
                        "film": {"type": "hdrfilm", "width": res, "height": res, "rfilter": {"type": "box"}},

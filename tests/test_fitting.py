@@ -27,7 +27,7 @@ def mi():
 
 #: The closed loops' renderer: without indirect light (a lone object, no floor: it adds little light and a third of
 #: the render's time), so that a fit's dozens of renders take seconds; the fit's own machinery is the same.
-LOOP = {"type": "convsss", "indirect_samples": 0}
+LOOP = {"type": "convsss", "indirect_samples": 0, "walk_depth": 0.0}  # the transport: the fit's forward model
 
 
 def _scene(mi, material, width=32):
@@ -156,8 +156,9 @@ def test_the_forward_model_moves_smoothly_with_the_mean_free_path(mi):
 
     skin = convsss.material("skin1")
     scene = mi.load_dict(quick_scene(demo_mesh(), material_of(skin.albedo_prime, skin.mfp_mm, 1.4), 20.0, width=24,
-                                     height=24, spp=4, boundary="dielectric", integrator={"type": "convsss"}))
-    integrator, sensor = mi.load_dict({"type": "convsss"}), scene.sensors()[0]
+                                     height=24, spp=4, boundary="dielectric",
+                                     integrator={"type": "convsss", "walk_depth": 0.0}))
+    integrator, sensor = mi.load_dict({"type": "convsss", "walk_depth": 0.0}), scene.sensors()[0]
     integrator.prepare(scene, sensor, 0)
     forward = Forward(scene, integrator, sensor, 0, 0, 4)
     a, b, c = (forward(material_of(skin.albedo_prime, skin.mfp_mm * (1 + 1e-3 * k), 1.4)) for k in range(3))

@@ -777,7 +777,8 @@ def test_progress_is_plain_lines_when_stderr_is_no_terminal(scene_file, tmp_path
         assert "\r" not in result.stderr
     assert "render: shading (7/8) at" in subprocess.run(
         [sys.executable, "-m", "convsss", "render", str(scene_file), "-o", str(tmp_path / "c"), "--spp", "1",
-         "--width", "16", "--height", "16"], capture_output=True, text=True, timeout=300, env=env).stderr
+         "--width", "16", "--height", "16", "--walk-depth", "0"], capture_output=True, text=True, timeout=300,
+        env=env).stderr
 
 
 def test_progress_counts_passes_once_the_integrator_names_them(capsys):

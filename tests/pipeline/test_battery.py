@@ -50,6 +50,7 @@ valid_params = st.fixed_dictionaries({}, optional={
     "phong_exponent": st.floats(1.0, 500.0),
     "max_depth": st.sampled_from((-1, 1, 2, 3, 6)),
     "rr_depth": st.integers(1, 8),
+    "walk_depth": st.sampled_from((0.0, 4.0, float("inf"), "auto")),
 })
 
 

@@ -19,7 +19,7 @@ def room(mi):
     def make(integrator, rho=0.5, seed=0):
         scene = mi.load_dict({
             "type": "scene",
-            "integrator": {"type": "convsss", "sample_density": 1.0, **integrator},
+            "integrator": {"type": "convsss", "sample_density": 1.0, "walk_depth": 0.0, **integrator},
             "sensor": {"type": "perspective", "fov": 20,
                        "to_world": T().look_at(origin=[0, 0, 8], target=[0, 0, 0], up=[0, 1, 0]),
                        "film": {"type": "hdrfilm", "width": 16, "height": 16, "rfilter": {"type": "box"}},
@@ -116,7 +116,7 @@ def against_volpath(mi, object_mask):
 
     def ratio(name, **integrator):
         scene = load_scene(DATA / f"indirect_{name}.xml")
-        convsss_integrator = mi.load_dict({"type": "convsss", "max_depth": -1, **integrator})
+        convsss_integrator = mi.load_dict({"type": "convsss", "max_depth": -1, "walk_depth": 0.0, **integrator})
         image = np.array(convsss_integrator.render(scene, scene.sensors()[0], seed=0), dtype=np.float64)[..., :3]
         reference = read_image(DATA / f"indirect_{name}_ref.exr")
         mask = object_mask(scene)

@@ -86,3 +86,16 @@ def test_walk_depth_auto_walks_where_diffusion_fails_on_some_object():
     assert walks.walk_depth == float("inf") and straight and walks.layers == 4
     given = RenderParams(walk_depth=4.0)
     assert resolve_walk_depth(given, [fails]) == (given, False)
+
+
+def test_a_transport_named_renders_unless_a_walk_depth_is_named_too():
+    assert RenderParams().walk_depth == "auto"
+    assert RenderParams(transport="volume").walk_depth == 0.0
+    assert RenderParams(transport="volume", walk_depth="auto").walk_depth == "auto"
+    assert RenderParams(**RenderParams(transport="exact").to_dict()).walk_depth == 0.0
+    from convsss.pipeline.params import render_params
+
+    scene = RenderParams(walk_depth=4.0).to_dict()  # a scene's convsss integrator, every value filled in
+    assert render_params({"transport": "volume", "walk_depth": None}, scene).walk_depth == 0.0
+    assert render_params({"transport": "volume", "walk_depth": 2.0}, scene).walk_depth == 2.0
+    assert render_params({"layers": 4}, scene).walk_depth == 4.0

@@ -101,7 +101,7 @@ def _absorbing_sphere(mi, boundary, spp, radius=2.0):
     T = mi.ScalarTransform4f
     absorber = Material(sigma_s_prime=[1e-4] * 3, sigma_a=[0.3, 0.5, 1.0], eta=1.3)
     return mi.load_dict({
-        "type": "scene", "integrator": {"type": "convsss"},
+        "type": "scene", "integrator": {"type": "convsss", "walk_depth": 0.0},  # the transport's path tracer
         "sensor": {"type": "perspective", "fov": 30,
                    "to_world": T().look_at(origin=[0, 2 * radius, 8 * radius], target=[0, 0, 0], up=[0, 1, 0]),
                    "film": {"type": "hdrfilm", "width": 32, "height": 32, "rfilter": {"type": "box"}},
@@ -205,7 +205,7 @@ def test_a_point_lights_shadow_ray_crosses_an_index_matched_occluder(mi):
 
     T = mi.ScalarTransform4f
     absorber = Material(sigma_s_prime=[1e-4] * 3, sigma_a=[0.3, 0.5, 1.0], eta=1.0)
-    base = {"type": "scene", "integrator": {"type": "convsss", "max_depth": 2},
+    base = {"type": "scene", "integrator": {"type": "convsss", "max_depth": 2, "walk_depth": 0.0},
             "sensor": {"type": "perspective", "fov": 20,
                        "to_world": T().look_at(origin=[0, -12, 1.5], target=[0, 0, 0], up=[0, 0, 1]),
                        "film": {"type": "hdrfilm", "width": 32, "height": 32, "rfilter": {"type": "box"}},

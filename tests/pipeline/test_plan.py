@@ -13,7 +13,7 @@ from convsss.scene.quick import demo_mesh, quick_scene
 
 def _bunny(mi, material, size_mm, res=96, **integrator):
     d = quick_scene(demo_mesh(), convsss.material(material), size_mm, res, res, 1,
-                    integrator={"type": "convsss", **integrator})
+                    integrator={"type": "convsss", "walk_depth": 0.0, **integrator})
     return mi.load_dict(d)
 
 

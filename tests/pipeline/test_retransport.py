@@ -39,10 +39,10 @@ def test_retransport_refuses_what_changes_the_samples(mi, sphere_scene):
     with pytest.raises(ConvsssError, match="prepare"):
         integrator.retransport()
     integrator.prepare(scene, scene.sensors()[0], 0)
-    integrator.retransport(params=RenderParams(accuracy=0.05))
+    integrator.retransport(params=RenderParams(accuracy=0.05, walk_depth=0.0))
     assert integrator.prepared.transports[0].params["accuracy"] == 0.05
     with pytest.raises(ConvsssError, match="sample_density"):
-        integrator.retransport(params=RenderParams(sample_density=2))
+        integrator.retransport(params=RenderParams(sample_density=2, walk_depth=0.0))
     obj = integrator.prepared.objects[0]
     with pytest.raises(ConvsssError, match="eta"):
         integrator.retransport([dataclasses.replace(obj, material=dataclasses.replace(obj.material, eta=1.4))])

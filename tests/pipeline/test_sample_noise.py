@@ -80,7 +80,7 @@ def _exitance_noise(mi, profile_samples, stratified, seeds=(0, 1)):
 
     options = {} if profile_samples is None else {"profile_samples": profile_samples}
     d = quick_scene(demo_mesh(), convsss.material("wholemilk"), 4.0, 32, 32, 1, boundary="null",
-                    integrator={"type": "convsss", **options})
+                    integrator={"type": "convsss", "walk_depth": 0.0, **options})
     scene = mi.load_dict(d)
     integrator = scene.integrator()
     values = []

@@ -30,7 +30,8 @@ def tiny_scene(mi, envmap, emitter="point", boundary="null", integrator=None, ma
     T = mi.ScalarTransform4f
     return mi.load_dict({
         "type": "scene",
-        "integrator": {"type": "convsss", "sample_density": 1.0, "irradiance_samples": 4, **(integrator or {})},
+        "integrator": {"type": "convsss", "sample_density": 1.0, "irradiance_samples": 4, "walk_depth": 0.0,
+                       **(integrator or {})},
         "sensor": {"type": "perspective", "fov": 35,
                    "to_world": T().look_at(origin=[0, 1, 5], target=[0, 0, 0], up=[0, 1, 0]),
                    "film": {"type": "hdrfilm", "width": SIZE, "height": SIZE, "rfilter": {"type": "box"}},

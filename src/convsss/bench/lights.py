@@ -70,7 +70,7 @@ def sphere_dict(material, boundary, emitter, radius=RADIUS_MM, resolution=32, sp
     T = mi.ScalarTransform4f
     return {
         "type": "scene",
-        "integrator": {"type": "convsss"},
+        "integrator": {"type": "convsss", "walk_depth": 0.0},  # the transport's light (walks: bench walk)
         "sensor": {"type": "perspective", "fov": 30,
                    "to_world": T().look_at(origin=[0, 2 * radius, 8 * radius], target=[0, 0, 0], up=[0, 1, 0]),
                    "film": {"type": "hdrfilm", "width": resolution, "height": resolution, "rfilter": {"type": "box"}},

@@ -143,10 +143,11 @@ def _command(args, folder):
 
 def scaling_configs(widths=SCALING_WIDTHS, spans=SCALING_SPANS, spp=4):
     """The command lines of :func:`bench_scaling`: ``(axis, value, args)``, the demo at each width, then the demo's
-    bunny (no floor) at 256² sized to each span in mean free paths of its material (the smallest channel's)."""
+    bunny (no floor) at 256² sized to each span in mean free paths of its material (the smallest channel's), each
+    rendered with the transport (walk_depth 0: what scales with the object's span is the transport's work)."""
     from ..materials import material
 
-    demo = ["render", "--mesh", "bunny", "--material", DEMO["material"], "--spp", str(spp)]
+    demo = ["render", "--mesh", "bunny", "--material", DEMO["material"], "--spp", str(spp), "--walk-depth", "0"]
     mfp = float(min(material(DEMO["material"]).mfp_mm))
     out = [("width", w, demo + ["--size-mm", f"{DEMO['size_mm']:g}", "--floor", "--width", str(w), "--height",
                                 str(w)]) for w in widths]

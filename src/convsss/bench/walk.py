@@ -38,6 +38,11 @@ REFERENCE_SPP = 1024
 SPP = 64
 
 
+def _label(depth):
+    """A walk depth as the command line takes it: ``4``, ``inf``, ``auto``."""
+    return depth if isinstance(depth, str) else f"{depth:g}"
+
+
 def _mean_ratio(reference, test, mask):
     inside = mask > 0.5
     return (test[inside].mean(axis=0) / np.maximum(reference[inside].mean(axis=0), 1e-30)).tolist()
@@ -63,14 +68,16 @@ def bench_walk_scene(name, scene, width, folder, spp=SPP, reference_spp=REFERENC
     rows = []
     mask = None
     for depth in depths:
-        step(f"walk_depth {depth:g}")
-        out = folder / f"walk-{depth:g}"
-        took = _run(["render", str(path), "-o", str(out), "--walk-depth", f"{depth:g}", "--spp", str(spp),
+        label = _label(depth)
+        step(f"walk_depth {label}")
+        out = folder / f"walk-{label}"
+        took = _run(["render", str(path), "-o", str(out), "--walk-depth", label, "--spp", str(spp),
                      "--aovs", "mask", "--stats", str(out.with_suffix(".json")), "--seed", "3"])
         image, mask = _image(out.with_suffix(".exr"))
         stats = json.loads(out.with_suffix(".json").read_text())
         walk = stats.get("walk", {})
-        rows.append({"walk_depth": depth, "seconds": took, "stage_seconds": stats["seconds"],
+        rows.append({"walk_depth": depth, "rendered": stats.get("walk_depth"), "seconds": took,
+                     "stage_seconds": stats["seconds"],
                      "ratio": _mean_ratio(reference, image, mask), "error": relative_mse(reference, image, mask),
                      "events_per_path": walk.get("events_per_path"), "ended_share": walk.get("ended_share")})
         if bar is not None:
@@ -93,7 +100,7 @@ def bench_walk(scenes=tuple(WALK_SCENES), width=64, spp=SPP, reference_spp=REFER
                progress=True):
     """:func:`bench_walk_scene` for every scene: ``{meta, scenes}``."""
     bar = tqdm(total=len(scenes) * (3 + len(depths)), desc="bench walk", unit="command", disable=not progress)
-    meta = {"width": width, "spp": spp, "reference_spp": reference_spp, "depths": [f"{d:g}" for d in depths],
+    meta = {"width": width, "spp": spp, "reference_spp": reference_spp, "depths": [_label(d) for d in depths],
             "cpus": os.cpu_count(), "load_average_start": list(os.getloadavg())}
     out = []
     with tempfile.TemporaryDirectory() as folder:
@@ -114,7 +121,9 @@ def walk_table(result):
         lines.append(f"{s['scene']:>18} {'reference':>10} {ratio:>20} {s['reference_noise']:>9.2e} "
                      f"{s['reference_s']:>8.1f}")
         for r in s["rows"]:
-            depth = r["walk_depth"] if isinstance(r["walk_depth"], str) else f"{r['walk_depth']:g}"
+            depth = _label(r["walk_depth"])
+            if r.get("rendered") not in (None, depth):
+                depth = f"{depth}={r['rendered']}"
             ratio = "/".join(f"{x:.3f}" for x in r["ratio"])
             events = "" if r.get("events_per_path") is None else f"{r['events_per_path']:.2f}"
             ended = "" if r.get("ended_share") is None else f"{r['ended_share']:.3f}"

@@ -247,7 +247,7 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, walk_depth, out
               help="Samples per pixel of the two references (seeds 1 and 2).")
 @click.option("--depths", default="0,2,4,8,16,inf", show_default=True,
               help="The walk depths, comma-separated (transport mean free paths; 0: the transport alone, inf: "
-                   "every walk to its end).")
+                   "every walk to its end, auto: what the default render chooses, shown as auto=0 or auto=inf).")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Also draw bias and seconds against the depth, a line per scene, to this PNG.")
 @click.option("-o", "--output", "out_file", type=click.Path(dir_okay=False),
@@ -267,12 +267,13 @@ def bench_walk_command(scenes, width, spp, reference_spp, depths, plot_path, out
     from ..bench.walk import WALK_SCENES, bench_walk, walk_plot, walk_table
     from ..errors import ConvsssError
 
+    bad = ConvsssError(f"--depths {depths!r}: give numbers >= 0, inf or auto, e.g. 0,4,inf,auto")
     try:
-        values = tuple(float(v) for v in depths.split(","))
+        values = tuple(v.strip() if v.strip() == "auto" else float(v) for v in depths.split(","))
     except ValueError:
-        raise ConvsssError(f"--depths {depths!r}: give numbers >= 0 or inf, e.g. 0,4,inf") from None
-    if not values or any(math.isnan(v) or v < 0 for v in values):
-        raise ConvsssError(f"--depths {depths!r}: give numbers >= 0 or inf, e.g. 0,4,inf")
+        raise bad from None
+    if not values or any(v != "auto" and (math.isnan(v) or v < 0) for v in values):
+        raise bad
     result = bench_walk(scenes or tuple(WALK_SCENES), width, spp, reference_spp, values, progress)
     if out_file:
         from ..files import atomic_write

@@ -23,9 +23,9 @@ from .scenes import load, scene_dict
 #: The paper's setting for every panel: Phong highlights, no plane correction, and surface samples by the image's
 #: cells alone (``profile_samples`` 0: the paper deposits irradiance per layer cell; the noise rule would draw
 #: millions of samples for its exact-sum references), every direction as a normal beam, the model's own total with
-#: single scattering in the profile.
+#: single scattering in the profile, and the transports alone (walk_depth 0: no random walk).
 BASE_PARAMS = {"specular": "phong", "correction": "none", "profile_samples": 0, "incidence": "normal",
-               "profile_total": "model", "single_scattering": "profile"}
+               "profile_total": "model", "single_scattering": "profile", "walk_depth": 0.0}
 
 
 #: The exact sums a figure compared with path tracing also reports against ``volpathmis``, one column each: every

@@ -128,12 +128,17 @@ def field_spacing(bounds_mm, material, walk_depth):
     return max(min(wanted, auto_spacing(material, float(np.max(size)))), finest)
 
 
+def has_field(params):
+    """Whether walks end in a field: ``0 < walk_depth < inf`` (``auto`` never: it renders with 0 or inf)."""
+    return not isinstance(params.walk_depth, str) and 0.0 < params.walk_depth < np.inf
+
+
 def field_only(params):
-    """Whether the surface samples serve the field alone: ``0 < walk_depth < inf`` (every camera path walks, so no
-    pixel reads a transport's exitance) and no AOV asks for the transports' exitance or the samples' irradiance."""
+    """Whether the surface samples serve the field alone: :func:`has_field` (every camera path walks, so no pixel
+    reads a transport's exitance) and no AOV asks for the transports' exitance or the samples' irradiance."""
     from .params import reads_transports
 
-    return 0.0 < params.walk_depth < np.inf and not reads_transports(params.aovs)
+    return has_field(params) and not reads_transports(params.aovs)
 
 
 def sample_count(obj, params):
@@ -151,7 +156,7 @@ def planned_bytes(obj, params):
     where ``walk_depth`` makes none: for the plan's memory check, before any work."""
     from ..transport.volume.grid import BYTES_PER_NODE
 
-    if not 0.0 < params.walk_depth < np.inf or obj.classes is not None:
+    if not has_field(params) or obj.classes is not None:
         return 0
     lo, hi = np.asarray(obj.bbox_mm, dtype=np.float64)
     h = field_spacing(obj.bbox_mm, obj.material, params.walk_depth)
@@ -163,7 +168,7 @@ def diffusion_field(objects, transports, params):
     """The fields of ``objects`` (:class:`DiffusionField`) from their ``transports``' samples (their irradiance,
     profile and view frame); None where ``walk_depth`` is 0 or inf, or no object has a field (a heterogeneous
     interior has none: its walks go on to their end)."""
-    if not 0.0 < params.walk_depth < np.inf:
+    if not has_field(params):
         return None
     fields = []
     for obj, transport in zip(objects, transports):

@@ -124,15 +124,16 @@ def render_parameters():
                   "Phong lobe weighted by the Fresnel reflectance, or none.", choices=SPECULARS),
         Parameter("phong_exponent", float, 64.0, "Exponent of the Phong lobe with specular = phong.", low=0.0,
                   low_open=True),
-        Parameter("walk_depth", float, 0.0, "Light under a translucent object's surface by a random walk through its "
-                  "medium (volumetric path tracing: the scene's medium, phase function and boundary BSDF), ended "
+        Parameter("walk_depth", float, "auto", "Light under a translucent object's surface by a random walk through "
+                  "its medium (volumetric path tracing: the scene's medium, phase function and boundary BSDF), ended "
                   "in the diffusion field solved on the object's volume where it scatters at least this many "
                   "transport mean free paths (1/sigma_t') below the surface, in the channels where diffusion holds. "
                   "0 renders with the transport alone (paper Eq. 7); inf follows every walk to its end, which is "
                   "Mitsuba's volpathmis for those objects. auto: the transport where diffusion holds on every "
                   "object (at least 20 transport mean free paths across its mean chord 4V/A, reduced albedo at least "
                   "0.95), else walks to their end with every light sampled straight through smooth boundaries (Eq. "
-                  "W4): where diffusion fails walks are short.", low=0.0, infinite=True, words=("auto",)),
+                  "W4): where diffusion fails walks are short. Where a transport is named and walk_depth is not, "
+                  "0.", low=0.0, infinite=True, words=("auto",)),
         Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
                   "light; -1 is unbounded with Russian roulette; 0 is not allowed).", low=-1),
         Parameter("rr_depth", int, 5, "Depth from which Russian roulette may end paths.", low=1),
@@ -217,6 +218,8 @@ class RenderParams:
             raise ConvsssError(f"the convsss integrator has no parameter {unknown[0]!r}")
         self._renderer = check_parameters(render_parameters(), {k: v for k, v in values.items() if k in renderer},
                                           "the convsss integrator")
+        if "transport" in values and "walk_depth" not in values:  # a transport named is the one that renders
+            self._renderer["walk_depth"] = 0.0
         if self._renderer["max_depth"] == 0:
             raise ConvsssError("max_depth=0 is not allowed: it must be -1 (unbounded) or >= 1")
         if self._renderer["profile_total"] == "model":
@@ -285,7 +288,11 @@ class RenderParams:
 
 
 def render_params(options, base=None):
-    """:class:`RenderParams` from the command's options (only those given) over ``base`` (a dict)."""
+    """:class:`RenderParams` from the command's options (only those given) over ``base`` (a dict); a transport given
+    without a walk_depth renders with that transport (``base``'s walk_depth dropped)."""
     values = dict(base or {})
-    values.update({name: value for name, value in options.items() if value is not None})
+    given = {name: value for name, value in options.items() if value is not None}
+    if "transport" in given and "walk_depth" not in given:
+        values.pop("walk_depth", None)
+    values.update(given)
     return RenderParams(**values)
