@@ -151,7 +151,7 @@ class DeclaredType(click.ParamType):
 
     def __init__(self, parameter):
         self.parameter = parameter
-        self.name = parameter.kind.__name__
+        self.name = "|".join([parameter.kind.__name__, *parameter.words])  # the metavar: FLOAT|AUTO
 
     def convert(self, value, param, ctx):
         try:
