@@ -116,3 +116,16 @@ def test_the_walks_field_is_planned_and_refused_before_any_sample(mi, monkeypatc
             convsss.render(walked)
     finally:
         set_budget(None)
+
+
+def test_the_profile_rule_fills_at_most_its_bytes_whatever_the_machine(mi, monkeypatch):
+    """Issue 50: on a 23 GB machine Spectralon at 800² drew 23 million samples (8.2 GiB); on any machine the rule's
+    samples now fill at most PROFILE_RULE_BYTES."""
+    from convsss.pipeline import plan as module
+    from convsss.pipeline.params import RenderParams
+
+    scene = _bunny(mi, "marble", 40.0, res=16)
+    monkeypatch.setattr(module, "available_memory", lambda: 2.0**50)
+    assert module.sample_cap(scene, RenderParams()) == module.PROFILE_RULE_BYTES // module.BYTES_PER_SAMPLE
+    monkeypatch.setattr(module, "available_memory", lambda: 2.0**30)  # less: the guard's share decides
+    assert module.sample_cap(scene, RenderParams()) < module.PROFILE_RULE_BYTES // module.BYTES_PER_SAMPLE
