@@ -456,6 +456,17 @@ def test_reference_warns_of_an_open_mesh_as_render_does(tmp_path):
         assert "translucent mesh 'object' is not watertight" in result.stderr, (command, result.stderr)
 
 
+@pytest.mark.slow
+def test_reference_ends_on_an_object_far_thinner_than_a_mean_free_path(tmp_path):
+    """Issue 51: `reference` on a 1e-6 mm object had never ended (paths without Russian roulette that never leave
+    the medium); it ends in about a second."""
+    done = subprocess.run([sys.executable, "-m", "convsss", "reference", "--mesh", "bunny", "--material", "wholemilk",
+                           "--size-mm", "1e-6", "--width", "8", "--height", "8", "--spp", "1", "-o",
+                           str(tmp_path / "tiny"), "--no-progress"], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "PYTHONPATH": _src_path()})
+    assert done.returncode == 0 and (tmp_path / "tiny.exr").is_file(), done.stderr
+
+
 def _interrupt(args, tmp_path, shown, wait=0.0, sig=signal.SIGINT, python=("-m", "convsss")):
     """Run ``convsss ARGS`` (``python ARGS``), send SIGINT (or ``sig``: SIGTERM) once stderr shows ``shown`` (and
     ``wait`` seconds more): exit code 130 (143), ``interrupted`` (``terminated``), no traceback and no file written."""
