@@ -214,13 +214,8 @@ class RandomWalk:
             phase = mei.medium.phase_function()
             phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
             valid |= scatter
-            for light in self.lights:
-                end_nee, end_uni, emitted, ds, crossed = self._emitter(_interaction(mei), medium, ratios, channel,
-                                                                       sampler, scatter, light)
-                phase_value, phase_pdf = phase.eval_pdf(phase_ctx, mei, ds.d, scatter)
-                end_nee = _update(end_nee, 1.0, phase_value, scatter)
-                end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, phase_pdf), phase_value, scatter)
-                result[scatter] += _mis(end_nee, end_uni) * emitted  # Eq. W2
+            result = self._next_events(result, _interaction(mei), medium, ratios, channel, sampler, scatter,
+                                       lambda d: phase.eval_pdf(phase_ctx, mei, d, scatter))  # noqa: B023 (called now)
             ratios_nee = _where(scatter, ratios, ratios_nee)
             wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
                                                        sampler.next_2d(scatter), scatter)
@@ -251,13 +246,8 @@ class RandomWalk:
             ctx = mi.BSDFContext()
             bsdf = si.bsdf(ray)
             lit = active_surface & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth) & (depth + 1 < self.max_depth)
-            for light in self.lights:
-                end_nee, end_uni, emitted, ds, crossed = self._emitter(si, medium, ratios, channel, sampler, lit,
-                                                                       light)
-                bsdf_value, bsdf_pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), lit)
-                end_nee = _update(end_nee, 1.0, bsdf_value, lit)
-                end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, bsdf_pdf), bsdf_value, lit)
-                result[lit] += _mis(end_nee, end_uni) * emitted
+            result = self._next_events(result, si, medium, ratios, channel, sampler, lit,
+                                       lambda d: bsdf.eval_pdf(ctx, si, si.to_local(d), lit))  # noqa: B023 (called now)
 
             bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(active_surface), sampler.next_2d(active_surface),
                                           active_surface)
@@ -287,6 +277,20 @@ class RandomWalk:
         self.counts["ended"] += int(dr.count(ended)[0])
         self.counts["capped"] += int(dr.count(events >= MAX_WALK)[0])
         return result, valid
+
+    def _next_events(self, result, origin, medium, ratios, channel, sampler, active, evaluate):
+        """``result`` plus, where ``active``, the light of each of :attr:`lights` sampled from ``origin`` (a
+        scattering vertex or a surface in ``medium``) and weighed against the path's own sampling there by the
+        balance heuristic (Eq. W2); ``evaluate(direction)`` is that sampling's ``(value, pdf)``: the phase function's
+        or the BSDF's."""
+        for light in self.lights:
+            end_nee, end_uni, emitted, ds, crossed = self._emitter(origin, medium, ratios, channel, sampler, active,
+                                                                   light)
+            value, pdf = evaluate(ds.d)
+            end_nee = _update(end_nee, 1.0, value, active)
+            end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, pdf), value, active)
+            result[active] += _mis(end_nee, end_uni) * emitted  # Eq. W2
+        return result
 
     @dr.syntax
     def _emitter(self, origin, medium, ratios, channel, sampler, active, light=None):
