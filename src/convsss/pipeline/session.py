@@ -157,7 +157,7 @@ class RenderSession:
 
     def __init__(self, params, stop, announce):
         self.params, self.stop, self.announce = params, stop, announce
-        #: What the last :meth:`survey` renders with: ``(params, straight)`` of :func:`~.params.resolve_walk_depth`.
+        #: What the last :meth:`prepare` renders with: ``(params, straight)`` of :func:`~.params.resolve_walk_depth`.
         self.walking = (params, False)
         self.prepared = self.tracer = self.aovs = None
         self.keep = False
@@ -184,10 +184,10 @@ class RenderSession:
         p = self.params
         objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders,
                                            lights_inside=p.walk_depth in ("auto", math.inf))
-        self.walking = resolve_walk_depth(p, objects)
-        if p.walk_depth == "auto" and self.walking[0].walk_depth == 0.0:  # the transport after all
+        walking = resolve_walk_depth(p, objects)[0]  # what the plan draws for (prepare keeps it, :attr:`walking`)
+        if p.walk_depth == "auto" and walking.walk_depth == 0.0:  # the transport after all
             check_lights_outside(mi, scene, objects, p.unit_mm)
-        p = self.walking[0]
+        p = walking
         check_camera(sensor)
         frame = sensor_frame(sensor, p.unit_mm)
         seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
@@ -214,7 +214,7 @@ class RenderSession:
         timer, stage = self._timed()
         with stage("samples"):
             objects, frame, seen, plan = survey if survey is not None else self.survey(scene, sensor)
-        p, straight = self.walking = resolve_walk_depth(self.params, objects)  # a survey given may hold new materials
+        p, straight = self.walking = resolve_walk_depth(self.params, objects)
         shown = [objects[q.index] for q in plan.objects]
         shown_at = [seen[q.index] for q in plan.objects]
         cells = [q.pixel_footprint_mm for q in plan.objects]
