@@ -52,6 +52,32 @@ def test_the_closed_loop_recovers_the_material(mi):
 
 
 @pytest.mark.slow
+def test_where_the_default_render_walks_the_fit_walks_and_the_closed_loop_recovers_the_material(mi):
+    """A 20 mm skin1 bunny (diffusion fails: walk_depth auto walks) rendered by the fit's own walks (seed 0, 16 spp,
+    no Russian roulette), fitted from albedo x 0.8 and mfp x 2: each render draws its paths by its own material and
+    the Jacobian's weigh those paths by the moved one, so the fit finds the material to the walks' jumps (paths that
+    cross the boundary as the material moves). Measured at 32^2: 0.16 % (albedo), 1.5 % (mfp) in 65 renders; held
+    to 0.5 % and 3 %. The transport's forward model is some per cent off on this object: it fails here."""
+    from convsss.fitting import NO_ROULETTE
+    from convsss.scene.quick import demo_mesh, quick_scene
+
+    def scene(material):
+        return mi.load_dict(quick_scene(demo_mesh(), material, 20.0, width=32, height=32, spp=4, boundary="null",
+                                        integrator={"type": "convsss", "indirect_samples": 0}))
+
+    skin = convsss.material("skin1")
+    truth = material_of(skin.albedo_prime, skin.mfp_mm, 1.0)
+    target_scene = scene(truth)
+    walks = mi.load_dict({"type": "convsss", "indirect_samples": 0, "rr_depth": NO_ROULETTE})
+    target = np.array(mi.render(target_scene, integrator=walks, seed=0, spp=16))[..., :3]
+    assert walks.stats["walk_depth"] == "inf"
+    start = material_of(truth.albedo_prime * 0.8, truth.mfp_mm * 2.0, 1.0)
+    result = fit(scene(start), target, start=start, max_evaluations=80)
+    np.testing.assert_allclose(result.reduced_albedo, truth.albedo_prime, rtol=5e-3)
+    np.testing.assert_allclose(result.mfp_mm, truth.mfp_mm, rtol=3e-2)
+
+
+@pytest.mark.slow
 def test_an_unknown_exposure_is_fitted_beside_the_material(mi):
     """The same at twice the exposure with fit_exposure: brightness is then shared by the scale and the albedo, so
     only the profile's shape tells them apart; held to 1 % (albedo, exposure) and 5 % (mfp)."""
@@ -131,7 +157,7 @@ def test_bad_input_is_refused_in_one_line_before_any_render(scene_file, tmp_path
 @pytest.mark.slow
 def test_the_command_writes_the_material_the_render_and_the_plots(scene_file, tmp_path):
     render = CliRunner().invoke(cli, ["render", str(scene_file), "-o", str(tmp_path / "target"), "--spp", "2",
-                                      "--walk-depth", "0", "--no-progress"])  # the fit's own forward model
+                                      "--no-progress"])  # the default render: the fit's forward model
     assert render.exit_code == 0, render.output
     result = CliRunner().invoke(cli, ["fit", str(scene_file), str(tmp_path / "target.exr"), "-o",
                                       str(tmp_path / "fitted"), "--spp", "2", "--max-evaluations", "8", "--check",

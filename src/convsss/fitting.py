@@ -10,7 +10,13 @@ and channel is ``(s I - T) / (T + f)``, ``f`` 1 % of the target's channel mean, 
 shared by the channels; it moves the material's ``eta`` (the light's entry and exit, Eqs. 1-2) and the boundary
 BSDF's (its reflection, the highlight) together.
 
-The forward model (:class:`Forward`) reuses what the material does not change: the scene is surveyed and planned
+The forward model (:class:`Forward`) is the default render's: where that walks (``walk_depth`` inf, or ``auto`` on
+an object where diffusion fails, :func:`~convsss.pipeline.params.resolve_walk_depth`, decided once by the scene's
+material) the random walk's, else the transport's. The walk's paths are drawn once by the scene's medium and only
+weighed by each trial material (:attr:`~convsss.pipeline.walk.RandomWalk.evaluated`; without Russian roulette,
+whose choices would move with it), so that the image moves smoothly with the material, each channel with its own
+coefficients; a fit that ends far from the scene's material draws them again with the fitted one, as the
+transport's does (below). The transport's reuses what the material does not change: the scene is surveyed and planned
 once, and every evaluation draws the same samples (the same seed and count) and their irradiance again for the
 new material (``reprepare``: it depends on ``alpha'`` through the entry gain and on ``sigma_t'`` through the light
 that crosses thin parts). The paths' random choices that depend on the material (the distance of traced single
@@ -26,6 +32,7 @@ variance.
 """
 
 import dataclasses
+import math
 import time
 
 import numpy as np
@@ -50,6 +57,14 @@ MAX_REPLANS = 3
 STEP = 1e-3
 #: The floor of the relative residual, as a share of the target's channel mean (as convsss.compare's).
 FLOOR = 0.01
+#: The ``rr_depth`` of a fit's walks: no Russian roulette, whose choices would move with the trial material.
+NO_ROULETTE = 2**30
+#: The renders' samples per pixel unless given: the transport's, and the walks' (noisier; a 20 mm skin1 bunny
+#: against a 64-spp walk at 48^2: mean free paths 40 % off at 4 spp, within 15 % at 16).
+TRANSPORT_SPP, WALK_SPP = 4, 16
+#: A fit's walks compare the render with the target over squares of this many pixels a side: a residual's noise
+#: is part of its square, and a material whose render is less noisy would otherwise fit better for that alone.
+WALK_BLOCK = 4
 
 
 @dataclasses.dataclass
@@ -99,12 +114,13 @@ def material_of(albedo, mfp_mm, eta, name="fitted"):
 class Forward:
     """The render of ``scene`` through ``sensor`` with object ``index``'s material set, (H, W, 3) float64.
 
-    ``integrator`` is a ``convsss`` integrator; ``seed`` and ``spp`` fixed for every evaluation. See the module
-    docstring for what each evaluation reuses; ``evaluations`` and ``seconds`` count them."""
+    ``integrator`` is a ``convsss`` integrator; ``seed`` and ``spp`` fixed for every evaluation; ``walks``: its
+    renders are random walks (their trial material weighs paths drawn by the scene's medium), else the transport's.
+    See the module docstring for what each evaluation reuses; ``evaluations`` and ``seconds`` count them."""
 
-    def __init__(self, scene, integrator, sensor, index, seed=0, spp=4):
+    def __init__(self, scene, integrator, sensor, index, seed=0, spp=4, walks=False):
         self.scene, self.integrator, self.sensor, self.index = scene, integrator, sensor, index
-        self.seed, self.spp = seed, spp
+        self.seed, self.spp, self.walks = seed, spp, walks
         self.evaluations, self.seconds = 0, 0.0
         #: The material the next evaluation sizes the samples by and draws the paths with (:meth:`replan`).
         self._replan = None
@@ -118,18 +134,46 @@ class Forward:
     def obj(self):
         return self.integrator.prepared.objects[self.index]
 
-    def __call__(self, material):
+    def __call__(self, material, drawn=None):
+        """The render of ``material``; with walks, their paths drawn by ``drawn`` (default: ``material`` itself), so
+        that renders of materials near ``drawn`` differ smoothly (the Jacobian's)."""
+        start = time.perf_counter()
+        if material.eta != self.obj.eta:
+            _set_boundary_eta(self.obj.shape, material.eta)
+        if self.walks:
+            image = self._walked(material, drawn or material)
+        else:
+            image = self._transported(material)
+        self.evaluations += 1
+        self.seconds += time.perf_counter() - start
+        return image
+
+    def _walked(self, material, drawn):
+        """The random walk's render of ``material``, its paths drawn by the object's medium set to ``drawn`` (as near
+        as the medium holds it: a grey one takes the channels' mean) and weighed by ``material``."""
+        import mitsuba as mi
+
+        from .pipeline.objects import phase_g
+
+        medium = self.obj.shape.interior_medium()
+        params = mi.traverse(medium)
+        g, unit_mm = phase_g(params), self.integrator.params.unit_mm
+        _set_medium(params, *medium_coefficients(drawn, g, unit_mm))
+        walk = self.integrator.session.tracer.walk
+        sigma_t, sigma_s = medium_coefficients(material, g, unit_mm)
+        walk.evaluated = [(mi.MediumPtr(medium), mi.Color3f(*sigma_t.tolist()), mi.Color3f(*sigma_s.tolist()))]
+        return np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
+
+    def _transported(self, material):
+        """The transport's render of ``material`` (the module doc's reuse)."""
         from .profiles.models import is_model, parse_profile_spec, resolve_profile
 
-        start = time.perf_counter()
         p = self.integrator.params
         default, per_object = parse_profile_spec(p.profile)
         spec = per_object.get(self.obj.name, per_object.get(self.obj.name.split("/")[0], default))
         if not is_model(spec):
             raise ConvsssError(f"translucent shape {self.obj.name!r} renders with the tabulated profile {spec!r}: "
                                "a fit needs a profile model (the integrator's profile parameter)")
-        if material.eta != self.obj.eta:
-            _set_boundary_eta(self.obj.shape, material.eta)
         # The paths' choices drawn with one material for every evaluation (the scene's, until replan), so that
         # they do not move with the material tried.
         sampling = self._replan or self.obj.sampling or self.obj.material
@@ -141,10 +185,7 @@ class Forward:
         # which keeps it, would leave the image a little off the material.
         self.integrator.reprepare(objects, replan=self._replan is not None)
         self._replan = None
-        image = np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
-        self.evaluations += 1
-        self.seconds += time.perf_counter() - start
-        return image
+        return np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
 
 
 class _Variables:
@@ -222,10 +263,14 @@ class _Problem:
     weighted by the target's value there (a relative error, floored at :data:`FLOOR` of the mean), and their
     Jacobian by forward differences of ``STEP``, each channel's albedo at once, then each channel's mfp."""
 
-    def __init__(self, forward, base, inside, target, fit_exposure, fit_eta, progress):
+    def __init__(self, forward, base, inside, target, fit_exposure, fit_eta, progress, block=1):
         self.forward, self.base, self.inside, self.progress = forward, base, inside, progress
         self.fit_exposure, self.fit_eta = fit_exposure, fit_eta
-        self.goal = target[inside]
+        # The pixels ``inside`` pooled in squares of ``block`` pixels a side (:meth:`pool`).
+        y, x = np.nonzero(inside)
+        cells = np.unique((y // block) * (inside.shape[1] // block + 1) + x // block, return_inverse=True)[1]
+        self.cells, self.cell_count = cells, np.bincount(cells).astype(np.float64)[:, None]
+        self.goal = self.pool(target)
         floor = FLOOR * np.maximum(self.goal.mean(axis=0), 1e-12)
         self.weight = 1.0 / (self.goal + floor)
         self.variables = _Variables(base.eta)
@@ -237,6 +282,11 @@ class _Problem:
         if fit_eta:
             lower, upper = np.append(lower, np.log(ETA_BOUNDS[0] - 1.0)), np.append(upper, np.log(ETA_BOUNDS[1] - 1.0))
         self.lower, self.upper = lower, upper
+
+    def pool(self, image):
+        """The mean of ``image`` (H, W, 3) over each square of pixels inside (the residuals' cells), (cells, 3)."""
+        values = image[self.inside]
+        return np.stack([np.bincount(self.cells, values[:, c]) for c in range(3)], axis=1) / self.cell_count
 
     def split(self, x):
         """``(albedo, mfp, exposure, eta)`` of the variables ``x``."""
@@ -269,7 +319,7 @@ class _Problem:
 
     def residuals(self, x):
         albedo, mfp, scale, eta = self.split(x)
-        r = (scale * self.render(albedo, mfp, eta)[self.inside] - self.goal) * self.weight
+        r = (scale * self.pool(self.render(albedo, mfp, eta)) - self.goal) * self.weight
         self.history.append(float(0.5 * np.sum(r**2)))
         if self.progress is not None:
             self.progress(self.forward.evaluations, self.history[-1])
@@ -277,7 +327,7 @@ class _Problem:
 
     def jacobian(self, x):
         albedo, mfp, scale, eta = self.split(x)
-        here = self.render(albedo, mfp, eta)[self.inside]
+        here = self.pool(self.render(albedo, mfp, eta))
         n = here.shape[0]
         columns = np.zeros((n, 3, len(x)))
 
@@ -285,7 +335,8 @@ class _Problem:
             x_moved = x.copy()
             x_moved[block:block + width] += STEP
             a, m, _, e = self.split(x_moved)
-            return (self.forward(material_of(a, m, e, self.base.name))[self.inside] - here) * scale * self.weight / STEP
+            moved_render = self.forward(material_of(a, m, e, self.base.name), drawn=material_of(albedo, mfp, eta))
+            return (self.pool(moved_render) - here) * scale * self.weight / STEP
 
         for block in (0, 3):  # every channel's alpha' at once, then every channel's mfp: the channels are apart
             derivative = moved(block, 3)
@@ -306,7 +357,7 @@ class _Problem:
                              f_scale=0.1, x_scale="jac", max_nfev=max_evaluations, xtol=1e-5, ftol=1e-6)
 
 
-def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, fit_eta=False, seed=0, spp=4,
+def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, fit_eta=False, seed=0, spp=None,
         max_evaluations=60, progress=None):
     """Fit one translucent object's material so that ``scene``'s render matches ``target``; a :class:`FitResult`.
 
@@ -329,7 +380,8 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
         Also fit the boundary's relative index (a dielectric or rough dielectric boundary; the scene's BSDF is
         given its own index back after the fit).
     seed, spp : int
-        The renders' seed and samples per pixel (the same for every evaluation).
+        The renders' seed and samples per pixel (the same for every evaluation); ``spp`` by default 4 for the
+        transport's renders, :data:`WALK_SPP` for walks.
     max_evaluations : int
         Evaluations of the least squares at most, each one render, per solve; each Jacobian adds one render per
         block of variables (the albedos, the mean free paths, eta), and a fit that replans solves again (at most
@@ -339,6 +391,7 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     """
     from .pipeline.integrator import ConvsssIntegrator, register
     from .pipeline.objects import find_translucent_objects
+    from .pipeline.params import RenderParams, resolve_walk_depth
 
     mi = register()
     sensor = scene.sensors()[0]
@@ -346,10 +399,17 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     target, mask = _checked_images(target, mask, width, height)
     named = scene.integrator()
     params = named.params.to_dict() if isinstance(named, ConvsssIntegrator) else {}
-    # The transport's render: the trial materials reach it (the random walk reads the scene's medium instead).
-    integrator = mi.load_dict({"type": "convsss", **params, "walk_depth": 0.0})
-    name = _object_to_fit(find_translucent_objects(mi, scene, integrator.params.unit_mm), object, fit_eta)
-    forward = Forward(scene, integrator, sensor, 0, seed, spp)
+    unit_mm = RenderParams(**params).unit_mm
+    found = find_translucent_objects(mi, scene, unit_mm)
+    name = _object_to_fit(found, object, fit_eta)
+    # The default render's forward model (module doc): walks where it walks to the end, else the transport's.
+    chosen = next(o for o in found if o.name == name)
+    walking = resolve_walk_depth(RenderParams(**params), found)[0].walk_depth
+    walks = walking == math.inf and chosen.classes is None
+    integrator = mi.load_dict({"type": "convsss", **params, **({"rr_depth": NO_ROULETTE} if walks else
+                                                               {"walk_depth": 0.0})})
+    spp = spp or (WALK_SPP if walks else TRANSPORT_SPP)
+    forward = Forward(scene, integrator, sensor, 0, seed, spp, walks)
     integrator.prepare(scene, sensor, seed)
     names = [o.name for o in integrator.prepared.objects]
     if name not in names:
@@ -368,16 +428,17 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     eta0 = float(np.clip(start.eta, *ETA_BOUNDS)) if fit_eta else base.eta
     albedo0 = np.clip(start.albedo_prime, *ALBEDO_BOUNDS)
     mfp0 = np.clip(start.mfp_mm, *MFP_BOUNDS_MM)
-    problem = _Problem(forward, base, inside, target, fit_exposure, fit_eta, progress)
+    problem = _Problem(forward, base, inside, target, fit_exposure, fit_eta, progress, WALK_BLOCK if walks else 1)
     begun = time.perf_counter()
-    mfp0 = _initial_mfp(forward, eta0, albedo0, mfp0, inside, problem.goal, problem.weight)
-    if fit_eta:
-        eta0 = _initial_eta(forward, eta0, albedo0, mfp0, inside, problem.goal, problem.weight)
+    held = _medium_values(forward.obj.shape.interior_medium()) if walks else {}
     try:
+        mfp0 = _initial_mfp(forward, eta0, albedo0, mfp0, problem)
+        if fit_eta:
+            eta0 = _initial_eta(forward, eta0, albedo0, mfp0, problem)
         solution = problem.solve(problem.start(albedo0, mfp0, eta0), max_evaluations)
         albedo, mfp, scale, eta = problem.split(solution.x)
         planned = base.mfp_mm
-        for _ in range(MAX_REPLANS):
+        for _ in range(0 if walks else MAX_REPLANS):  # walks draw each render's paths by its own material
             # The scene's material sized the samples (their spacing follows its profile) and drew the paths'
             # choices; far from it, the fit is made again from where it ended, with both the fitted material's.
             if not np.any(np.abs(np.log(mfp / planned)) > np.log(REPLAN_FACTOR)):
@@ -390,6 +451,8 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     finally:
         if fit_eta:
             _set_boundary_eta(forward.obj.shape, base.eta)
+        if held:
+            _restore(forward.obj.shape.interior_medium(), held)
     variables, eta_at, history = problem.variables, problem.eta_at, problem.history
     std = _deviations(solution, variables, albedo, mfp)
     eta_std = float(std[2][eta_at] * (eta - 1.0)) if fit_eta else float("nan")
@@ -405,25 +468,27 @@ def _brightness_free_cost(image, goal, weight):
     return np.sum(((scale * image - goal) * weight) ** 2, axis=0)
 
 
-def _initial_eta(forward, eta, albedo, mfp, inside, goal, weight):
+def _initial_eta(forward, eta, albedo, mfp, problem):
     """The start's boundary index or one of :data:`ETA_START_VALUES`, whichever renders the target's shape best
     (:func:`_brightness_free_cost`, summed over the channels): one evaluation each. Fitted from one index only, the
     albedo can take up the brightness the index should explain and the fit end in a valley beside the start (as a
     small skin1 bunny started below its true index did)."""
     candidates = sorted({float(np.clip(e, *ETA_BOUNDS)) for e in (eta, *ETA_START_VALUES)})
-    costs = [np.sum(_brightness_free_cost(forward(material_of(albedo, mfp, e))[inside], goal, weight))
+    costs = [np.sum(_brightness_free_cost(problem.pool(forward(material_of(albedo, mfp, e))), problem.goal,
+                                          problem.weight))
              for e in candidates]
     return candidates[int(np.argmin(costs))]
 
 
-def _initial_mfp(forward, eta, albedo, mfp, inside, goal, weight):
+def _initial_mfp(forward, eta, albedo, mfp, problem):
     """Per channel, the start's mean free path times the one of :data:`MFP_START_FACTORS` whose render matches the
     target's shape best (:func:`_brightness_free_cost`, so that a wrong colour does not pick the blur): the channels
     render together, one evaluation per factor. A least-squares fit from a mean free path far off can settle where
     the image no longer depends on it (an object looking opaque, or clear)."""
     best, chosen = np.full(3, np.inf), np.array(mfp, dtype=np.float64)
     for factor in MFP_START_FACTORS:
-        cost = _brightness_free_cost(forward(material_of(albedo, mfp * factor, eta))[inside], goal, weight)
+        cost = _brightness_free_cost(problem.pool(forward(material_of(albedo, mfp * factor, eta))), problem.goal,
+                                     problem.weight)
         better = cost < best
         best[better], chosen[better] = cost[better], (mfp * factor)[better]
     return np.clip(chosen, *MFP_BOUNDS_MM)
@@ -445,6 +510,47 @@ def _deviations(solution, variables, albedo, mfp):
     moved[:3] += STEP
     slope = np.abs(variables.decode(moved)[0] - albedo) / STEP
     return sd[:3] * slope, sd[3:6] * mfp, sd
+
+
+def medium_coefficients(material, g, unit_mm):
+    """A medium's ``(sigma_t, sigma_s)`` (3,) per scene unit of ``unit_mm`` mm that has ``material``'s reduced
+    coefficients under a phase function of mean cosine ``g``: ``sigma_s = sigma_s' / (1 - g)`` (the similarity
+    relation), ``sigma_t = sigma_s + sigma_a``."""
+    sigma_s = material.sigma_s_prime / (1.0 - g)
+    return (sigma_s + material.sigma_a) * unit_mm, sigma_s * unit_mm
+
+
+def _set_medium(params, sigma_t, sigma_s):
+    """Give a Mitsuba homogeneous medium (its traversed ``params``) the coefficients ``sigma_t``, ``sigma_s`` (3,
+    per scene unit): ``scale`` the largest extinction, ``sigma_t`` the rest; a grey coefficient (one value) the
+    channels' mean."""
+    import mitsuba as mi
+
+    scale = float(np.max(sigma_t))
+    params["scale"] = scale
+    for name, value in (("sigma_t", sigma_t / scale), ("albedo", np.clip(sigma_s / sigma_t, 0.0, 1.0))):
+        key = f"{name}.value.value" if f"{name}.value.value" in params else f"{name}.value"
+        held = params[key]
+        params[key] = type(held)(*value.tolist()) if isinstance(held, mi.Color3f) else type(held)(float(np.mean(value)))
+    params.update()
+
+
+def _medium_values(medium):
+    """A copy of a Mitsuba medium's traversed values (:func:`_restore` gives them back)."""
+    import mitsuba as mi
+
+    params = mi.traverse(medium)
+    return {key: type(params[key])(params[key]) for key in params.keys()}
+
+
+def _restore(medium, values):
+    """Give a Mitsuba medium back the ``values`` of :func:`_medium_values`."""
+    import mitsuba as mi
+
+    params = mi.traverse(medium)
+    for key, value in values.items():
+        params[key] = value
+    params.update()
 
 
 def _set_boundary_eta(shape, eta):

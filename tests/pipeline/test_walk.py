@@ -149,3 +149,29 @@ def test_walk_depth_auto_walks_where_diffusion_fails_and_keeps_the_transport_whe
             zero = mi.load_dict({"type": "convsss", "walk_depth": 0.0})
             np.testing.assert_array_equal(image, np.array(mi.render(scene, integrator=zero, spp=4, seed=1)))
     assert rendered == {"skin1": ("inf", True, "auto"), "marble": ("0", False, "auto")}
+
+
+def test_paths_drawn_by_one_medium_and_weighed_by_another_render_the_other(mi, sphere_scene):
+    """RandomWalk.evaluated (a fit's trial material): a 2 mm skin1 sphere's paths, drawn by its medium and weighed by
+    skin2's coefficients (mean free paths 0.6-0.9 of skin1's, albedos higher), render the skin2 sphere within both
+    renders' noise, as the skin2 sphere walked by its own medium (two seeds each; without Russian roulette, as a fit
+    walks). It fails with the weights left the drawn medium's (a darker image)."""
+    from convsss.fitting import NO_ROULETTE, medium_coefficients
+
+    def images(material, weighed=None):
+        scene = mi.load_dict(sphere_scene(material=material, radius=1.0, res=RES, floor=True,
+                                          integrator={"walk_depth": float("inf"), "rr_depth": NO_ROULETTE}))
+        integrator = scene.integrator()
+        integrator.prepare(scene, scene.sensors()[0])
+        if weighed is not None:
+            medium = next(s for s in scene.shapes() if s.interior_medium() is not None).interior_medium()
+            sigma_t, sigma_s = medium_coefficients(convsss.material(weighed), 0.0, 1.0)
+            integrator.session.tracer.walk.evaluated = [(mi.MediumPtr(medium), mi.Color3f(*sigma_t.tolist()),
+                                                         mi.Color3f(*sigma_s.tolist()))]
+        return [np.array(integrator.render_prepared(spp=SPP, seed=s), dtype=np.float64)[..., :3] for s in (1, 2)]
+
+    ours, truth = images("skin1", weighed="skin2"), images("skin2")
+    (m_ours, e_ours), (m_truth, e_truth) = _means_and_noise(ours), _means_and_noise(truth)
+    assert np.all(np.abs(m_ours - m_truth) <= 0.01 * m_truth + 4 * np.hypot(e_ours, e_truth)), (m_ours / m_truth)
+    spread = np.mean((ours[0] - ours[1]) ** 2 + (truth[0] - truth[1]) ** 2) / 4
+    assert np.mean(((ours[0] + ours[1]) / 2 - (truth[0] + truth[1]) / 2) ** 2) <= 1.3 * spread

@@ -43,7 +43,7 @@ def _scene(mi, material, light, width):
     return mi.load_dict(scene)
 
 
-def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=4, progress=True):
+def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=None, progress=True):
     """Rows, one per case: ``name``, ``light``, per channel ``truth``, ``start``, ``fitted`` (``albedo`` and
     ``mfp_mm`` each), ``error`` and ``std`` (the fit's own standard deviations; both relative), ``evaluations``,
     ``seconds``, ``reference_noise`` (relative RMS of the two references' difference / sqrt 2), ``fitted_ratio``
@@ -69,7 +69,7 @@ def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=4, progress=True):
         inside = result.mask
         target = refs[0][inside]
         noise = np.sqrt(np.mean(((refs[0] - refs[1])[inside] / np.sqrt(2)) ** 2, axis=0)) / target.mean(axis=0)
-        at_truth = np.array(convsss.render(_scene(mi, truth, light, width), seed=0, spp=spp))[..., :3][inside]
+        at_truth = np.array(convsss.render(_scene(mi, truth, light, width), seed=0, spp=spp or 16))[..., :3][inside]
         rows.append({"name": name, "light": light, "width": width,
                      "truth": {"albedo": truth.albedo_prime.tolist(), "mfp_mm": truth.mfp_mm.tolist()},
                      "start": {"albedo": start.albedo_prime.tolist(), "mfp_mm": start.mfp_mm.tolist()},

@@ -31,8 +31,9 @@ from .options import PROGRESS
 @click.option("--fit-eta", is_flag=True,
               help="Also fit the boundary's relative index (one for every channel; a dielectric or roughdielectric "
                    "boundary). [default: eta as the scene has it]")
-@click.option("--spp", type=click.IntRange(1), default=4, show_default=True,
-              help="Samples per pixel of every evaluation's render.")
+@click.option("--spp", type=click.IntRange(1), default=None,
+              help="Samples per pixel of every evaluation's render. [default: 4; 16 where the fit walks (the default "
+                   "render's random walk, on an object where diffusion fails)]")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="The renders' seed (the same for every evaluation, so the fit sees no noise between them).")
 @click.option("--max-evaluations", type=click.IntRange(4), default=80, show_default=True,

@@ -35,6 +35,12 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   (``walk_depth`` finite) every emitter lights the vertex this way, and a path that refracts out of the object
   straight after a scattering vertex no longer counts the emitter it hits: behind a smooth boundary an area light
   or the environment is then found by light sampling, not by the chance hits that make ``volpathmis`` noisy there;
+* a medium may be **weighed by other coefficients than it is drawn by** (:attr:`RandomWalk.evaluated`: a fit's
+  trial material, :mod:`convsss.fitting`): its flights and events are drawn by the medium's own extinction as always
+  and only ``f_i`` takes the trial's transmittance ``e^{-sigma_t t}`` and ``sigma_s`` (Eq. W1's densities unchanged:
+  an importance-sampled estimate of the trial's image, unbiased for any trial, its variance growing as the trial's
+  extinction falls below the drawn one), so that the image moves smoothly with the trial (the paths stay where they
+  are), each channel's with its own coefficients only;
 * Russian roulette on the path's weight from ``rr_depth`` (not at albedo ~1 inside a medium, where it would only add
   fireflies: there the roulette's survival odds are the weight itself, capped at 1), ``max_depth`` surface bounces
   and at most :data:`MAX_WALK` scattering events inside media.
@@ -112,6 +118,9 @@ class RandomWalk:
         self.lights = list(scene.emitters()) if each_emitter and scene.emitters() else [None]
         #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.
         self.field = None
+        #: ``(medium, sigma_t, sigma_s)`` of the homogeneous media whose paths are weighed by these coefficients
+        #: (Color3f per scene unit) instead of the medium's own, which still draw them (module doc; a fit's trial).
+        self.evaluated = []
         #: Counts since :meth:`reset`: ``paths`` traced, scattering ``events`` in media, paths ``ended`` in the
         #: field (in some channel) and ``capped`` at :data:`MAX_WALK` events.
         self.counts = {}
@@ -176,7 +185,10 @@ class RandomWalk:
             needs_intersection &= ~active_medium
             mei.t[active_medium & (si.t < mei.t)] = dr.inf
             spectral = active_medium & medium.has_spectral_extinction()
+            trial, trial_t, trial_s = self._evaluated(medium, active_medium)
+            spectral |= trial
             transmittance, flight_pdf = medium.transmittance_eval_pdf(mei, si, spectral)
+            transmittance[trial] = dr.exp(-trial_t * (dr.minimum(mei.t, si.t) - mei.mint))
             ratios = _update(ratios, flight_pdf, transmittance, spectral)
             ratios_nee = _update(ratios_nee, flight_pdf, transmittance, spectral)
             escaped = active_medium & ~mei.is_valid()
@@ -198,7 +210,7 @@ class RandomWalk:
             ratios_nee = _update(ratios_nee, 1.0, null_probability, grey & null)
             ray.o[null] = mei.p
             si.t[null] = si.t - mei.t
-            ratios = _update(ratios, 1.0 - null_probability, mei.sigma_s, spectral & scatter)
+            ratios = _update(ratios, 1.0 - null_probability, dr.select(trial, trial_s, mei.sigma_s), spectral & scatter)
             ratios = _update(ratios, mei.sigma_t, mei.sigma_s, grey & scatter)
 
             # ---- deep enough: the channels where diffusion holds end in its field (Eq. W3) ----
@@ -278,6 +290,17 @@ class RandomWalk:
         self.counts["capped"] += int(dr.count(events >= MAX_WALK)[0])
         return result, valid
 
+    def _evaluated(self, medium, active):
+        """Per lane in ``medium`` (where ``active``): whether its paths are weighed by :attr:`evaluated`'s
+        coefficients, and those ``sigma_t``, ``sigma_s`` (Color3f per scene unit; 0 elsewhere)."""
+        n = dr.width(active)
+        trial, sigma_t, sigma_s = dr.full(mi.Bool, False, n), dr.zeros(mi.Color3f, n), dr.zeros(mi.Color3f, n)
+        for weighed, weighed_t, weighed_s in self.evaluated:
+            here = active & (medium == weighed)
+            trial |= here
+            sigma_t[here], sigma_s[here] = weighed_t, weighed_s
+        return trial, sigma_t, sigma_s
+
     def _next_events(self, result, origin, medium, ratios, channel, sampler, active, evaluate):
         """``result`` plus, where ``active``, the light of each of :attr:`lights` sampled from ``origin`` (a
         scattering vertex or a surface in ``medium``) and weighed against the path's own sampling there by the
@@ -329,12 +352,14 @@ class RandomWalk:
             si[intersect] = scene.ray_intersect(ray, intersect)
             mei.t[active_medium & (si.t < mei.t)] = dr.inf
             needs_intersection &= ~active_medium
-            spectral = active_medium & medium.has_spectral_extinction()
+            trial, trial_t, _ = self._evaluated(medium, active_medium)
+            spectral = active_medium & (medium.has_spectral_extinction() | trial)
             grey = active_medium & ~spectral
             t = dr.minimum(remaining, dr.minimum(mei.t, si.t)) - mei.mint
             transmittance = dr.exp(-t * mei.combined_extinction)
             flight_pdf = dr.select((si.t < mei.t) | (mei.t > remaining), transmittance,
                                    transmittance * mei.combined_extinction)
+            transmittance[trial] = dr.exp(-t * trial_t)
             with_nee = _update(with_nee, flight_pdf, transmittance, spectral)
             with_uni = _update(with_uni, flight_pdf, transmittance, spectral)
             total[active_medium & (mei.t > remaining) & mei.is_valid()] = ds.dist
@@ -370,6 +395,7 @@ class RandomWalk:
             cos_out = dr.abs(cos)
             compression = cos_out / dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
             sigma_t = dr.select(medium.is_homogeneous(), mi.Color3f(mei.combined_extinction), 0.0)
+            sigma_t[trial] = trial_t
             passed[through] = (fresnel_transmittance(eta, cos_out) * compression
                                * dr.exp(-sigma_t * total * (compression - 1.0)))  # Eq. W4
             with_nee = _update(with_nee, 1.0, passed, active_surface)
