@@ -14,22 +14,14 @@ import time
 import numpy as np
 from tqdm import tqdm
 
+from .scenes import bench_material
+
 #: The materials: a name, a preset's name or a colour (the exact total reflectance) and a mean free path (mm).
 MATERIALS = (("milk", "wholemilk"), ("marble", "marble"), ("skin1", "skin1"), ("ketchup", "ketchup"),
              ("potato", "potato"), ("orange", ((0.7, 0.5, 0.3), 1.5)), ("jade", ((0.4, 0.6, 0.8), 4.0)))
 #: The cases: a name, the material, the light; every material under the point lights, then under the environment.
 CASES = tuple((name, spec, "points") for name, spec in MATERIALS) + tuple(
     (f"{name}-env", spec, "environment") for name, spec in MATERIALS)
-
-
-def _material(spec):
-    import convsss
-    from convsss.profiles.models import material_from_color
-
-    if isinstance(spec, str):
-        return convsss.material(spec)
-    color, mfp = spec
-    return material_from_color(color, mfp, 1.3, "exact", name="colour", warn=False)
 
 
 def _scene(mi, material, light, width):
@@ -57,7 +49,7 @@ def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=None, progress=Tru
     rows = []
     bar = tqdm(total=len(cases), desc="bench fit", unit="case", disable=not progress)
     for name, spec, light in cases:
-        truth = _material(spec)
+        truth = bench_material(spec)
         truth = material_of(truth.albedo_prime, truth.mfp_mm, 1.0, truth.name)  # the null boundary's eta
         refs = [render_reference(_scene(mi, truth, light, width), reference_spp, 32, seed) for seed in (1, 2)]
         start = material_of(np.clip(truth.albedo_prime * 0.7, 1e-3, 0.999), truth.mfp_mm * 3.0, 1.0)

@@ -17,15 +17,36 @@ MESHES = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "meshe
 
 @dataclass(frozen=True)
 class BenchScene:
-    """A benchmark scene: a mesh (``bunny``: the bundled one; else a file in :data:`MESHES`), a preset material,
-    the object's size, and its lighting: ``key+back`` (index-matched boundary, the quick scene's two point lights),
-    ``back`` (the back light alone: lit from behind) or ``area`` (a smooth dielectric under a square area light at the
-    key light's place and a dim constant environment)."""
+    """A benchmark scene: a mesh (``bunny``: the bundled one; else a file in :data:`MESHES`), a material (a preset's
+    name, or a colour and a mean free path: :func:`bench_material`), the object's size, and its lighting:
+    ``key+back`` (index-matched boundary, the quick scene's two point lights), ``back`` (the back light alone: lit
+    from behind), ``area`` (a smooth dielectric under a square area light at the key light's place and a dim
+    constant environment), ``side`` (the same light beside the object, level with its centre, at right angles to
+    the camera: thin parts seen against it), ``sun`` (a rough dielectric, roughness 0.3, under a sun, a directional
+    light from the key light's side, and a sky, a constant environment) or ``environment`` (a smooth dielectric
+    under a constant environment alone)."""
 
     mesh: str
     material: str
     size_mm: float
     lighting: str = "key+back"
+
+
+#: The lightings whose boundary is a smooth dielectric, and a rough one (the rest: index-matched).
+DIELECTRIC_LIGHTINGS = ("area", "side", "environment")
+ROUGH_LIGHTINGS = ("sun",)
+
+
+def bench_material(spec):
+    """A benchmark's material: a preset's name, or ``(colour, mfp_mm)``, the exact total reflectance per channel and
+    one reduced mean free path (eta 1.3)."""
+    from ..materials import material
+    from ..profiles.models import material_from_color
+
+    if isinstance(spec, str):
+        return material(spec)
+    color, mfp = spec
+    return material_from_color(color, mfp, 1.3, "exact", name="colour", warn=False)
 
 
 SCENES = {
@@ -40,7 +61,6 @@ SCENES = {
 def scene_dict(scene, resolution=800):
     """The Mitsuba scene dictionary of a :class:`BenchScene` (or the name of one in :data:`SCENES`)."""
     from ..errors import ConvsssError
-    from ..materials import material as lookup_material
     from ..scene.quick import demo_mesh, mesh_bounds, quick_scene
 
     if isinstance(scene, str):
@@ -50,24 +70,35 @@ def scene_dict(scene, resolution=800):
     mesh = demo_mesh() if scene.mesh == "bunny" else MESHES / scene.mesh
     if not mesh.is_file():
         raise ConvsssError(f"benchmark mesh {str(mesh)!r} is missing (the test meshes live in ../shared/data/meshes)")
-    boundary = "dielectric" if scene.lighting == "area" else "null"
-    size_mm = scene.size_mm
-    out = quick_scene(mesh, lookup_material(scene.material), size_mm, resolution, resolution, boundary=boundary)
-    if scene.lighting == "back":
+    lighting, size_mm = scene.lighting, scene.size_mm
+    boundary = ("dielectric" if lighting in DIELECTRIC_LIGHTINGS else
+                "roughdielectric" if lighting in ROUGH_LIGHTINGS else "null")
+    out = quick_scene(mesh, bench_material(scene.material), size_mm, resolution, resolution, boundary=boundary)
+    if lighting == "back":
         out.pop("key_light")
-    elif scene.lighting == "area":
+    if lighting in ("area", "side", "sun", "environment"):
         from ..backend import load_mitsuba
 
         transform = load_mitsuba().ScalarTransform4f
         lo, hi = mesh_bounds(mesh)
-        centre = [0.0, 0.5 * size_mm * float((hi - lo)[1] / np.max(hi - lo)), 0.0]  # quick_scene's layout
+        centre = np.array([0.0, 0.5 * size_mm * float((hi - lo)[1] / np.max(hi - lo)), 0.0])  # quick_scene's layout
         key = np.asarray(out.pop("key_light")["position"])
         out.pop("back_light")
-        side = 0.5 * size_mm
+        distance = float(np.linalg.norm(key - centre))
+    if lighting == "sun":
+        out["object"]["bsdf"]["alpha"] = 0.3
+        out["sun"] = {"type": "directional", "direction": (centre - key).tolist(),
+                      "irradiance": {"type": "rgb", "value": [1.0] * 3}}
+        out["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.2] * 3}}
+    elif lighting == "environment":
+        out["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": [1.0] * 3}}
+    elif lighting in ("area", "side"):
         # A square light facing the object (a rectangle emits along its +z), irradiance about 1 at the object,
         # and a dim environment that lights the back.
-        radiance = float(np.sum((key - centre) ** 2)) / side**2
-        to_world = transform().look_at(origin=key.tolist(), target=centre, up=[0.0, 1.0, 0.0])
+        at = key if lighting == "area" else centre + [distance, 0.0, 0.0]
+        side = 0.5 * size_mm
+        radiance = distance**2 / side**2
+        to_world = transform().look_at(origin=np.asarray(at).tolist(), target=centre.tolist(), up=[0.0, 1.0, 0.0])
         out["area_light"] = {"type": "rectangle", "to_world": to_world @ transform().scale([side / 2, side / 2, 1]),
                              "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [radiance] * 3}}}
         out["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.05] * 3}}

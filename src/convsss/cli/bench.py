@@ -234,11 +234,14 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, walk_depth, out
 
 @bench.command("walk")
 @click.option("--scene", "scenes", multiple=True,
-              type=click.Choice(["skin40-back", "armadillo30-area", "milk4", "ketchup20", "marble40-area"]),
+              type=click.Choice(["skin40-back", "armadillo30-area", "milk4", "ketchup20", "marble40-area",
+                                 "dragon40-sun", "lucy40-side", "potato40-env"]),
               help="A scene (repeat for several) [default: all]: the 40 mm skin1 bunny lit from behind, a 30 mm skin1 "
                    "armadillo behind a smooth dielectric under an area light, a 4 mm whole-milk bunny, a 20 mm "
-                   "ketchup bunny (null boundary, the key and back lights) and a 40 mm marble bunny behind a "
-                   "dielectric under an area light.")
+                   "ketchup bunny (null boundary, the key and back lights), a 40 mm marble bunny behind a "
+                   "dielectric under an area light, a 40 mm skim-milk dragon behind a rough dielectric under a sun "
+                   "and a sky, a 40 mm Lucy of a jade colour (0.4, 0.6, 0.8 at 4 mm) behind glass under a side "
+                   "light, and a 40 mm potato bunny behind a dielectric under an environment.")
 @click.option("--width", type=click.IntRange(16, 4096), default=64, show_default=True,
               help="Image width and height (square).")
 @click.option("--spp", type=click.IntRange(1), default=64, show_default=True,
