@@ -32,9 +32,12 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   times the straight ray's own transmittance: the Fresnel transmittance, the beam's compression and, in a
   homogeneous medium, the length of the refracted path inside, ``s mu / mu'`` (all three as in Eq. S2,
   :mod:`.path_tracer`: exact for a plane boundary, an approximation elsewhere). Where walks end in the field
-  (``walk_depth`` finite) every emitter lights the vertex this way, and a path that refracts out of the object
-  straight after a scattering vertex no longer counts the emitter it hits: behind a smooth boundary an area light
-  or the environment is then found by light sampling, not by the chance hits that make ``volpathmis`` noisy there;
+  (``walk_depth`` finite) and in ``auto``'s walks every emitter but the environment lights the vertex this way, and
+  a path that refracts out of the object straight after a scattering vertex no longer counts such an emitter when
+  it hits it: behind a smooth boundary an area light is then found by light sampling, not by the chance hits that
+  make ``volpathmis`` noisy there. The environment (an infinite emitter) is left to those hits, which find it well:
+  on a 40 mm potato bunny behind a dielectric under a constant environment (64², 64 spp) Eq. W4 for it read
+  0.973/0.974/0.989 of the reference at 3.5 times the relative MSE of the hits (0.999/0.999/1.001);
 * a medium may be **weighed by other coefficients than it is drawn by** (:attr:`RandomWalk.evaluated`: a fit's
   trial material, :mod:`convsss.fitting`): its flights and events are drawn by the medium's own extinction as always
   and only ``f_i`` takes the trial's transmittance ``e^{-sigma_t t}`` and ``sigma_s`` (Eq. W1's densities unchanged:
@@ -109,9 +112,10 @@ class RandomWalk:
         self.scene, self.classify = scene, classify
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         self.rr_depth = params.rr_depth
-        #: Every emitter's light, not just a delta light's, reaches a scattering vertex straight through a smooth
-        #: boundary (Eq. W4) where walks end in the field (``walk_depth`` finite) or with ``straight`` (walk_depth
-        #: auto's walks); at ``inf`` only what no path reaches, so that the walk stays ``volpathmis``.
+        #: Every emitter's light but the environment's, not just a delta light's, reaches a scattering vertex
+        #: straight through a smooth boundary (Eq. W4) where walks end in the field (``walk_depth`` finite) or with
+        #: ``straight`` (walk_depth auto's walks); at ``inf`` only what no path reaches, so that the walk stays
+        #: ``volpathmis``.
         self.straight_through = params.walk_depth < float("inf") or straight
         #: The emitters each vertex samples one by one (``each_emitter``: a shadow ray each, and a shadow-ray loop
         #: each in the walk's kernel), or ``[None]``: one the scene chooses.
@@ -251,7 +255,8 @@ class RandomWalk:
                 emitter_pdf = emitter.pdf_direction(last_scatter, to_emitter, seen & ~direct)
             ratios_nee = _update(ratios_nee, emitter_pdf, 1.0, seen & ~direct)
             radiance = emitter.eval(si, seen)
-            seen &= ~straight_out  # the light that Eq. W4 took at the last scattering vertex
+            # The light that Eq. W4 took at the last scattering vertex (an environment's it leaves to this hit).
+            seen &= ~(straight_out & ~mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite))
             result[seen] += dr.select(direct, _mis(ratios), _mis(ratios, ratios_nee)) * radiance
             active_surface &= si.is_valid()
 
@@ -383,12 +388,12 @@ class RandomWalk:
             bsdf = si.bsdf(ray)
             passed = bsdf.eval_null_transmission(si, active_surface)
             # A delta light through a translucent object's smooth dielectric boundary, which no path can reach (with
-            # straight_through, every light): straight out, times the Fresnel transmittance, the beam's compression
-            # and, in a homogeneous medium, the refracted path's length inside (Eq. W4). A rough one is left to the
-            # next-event estimation at the boundary, where its BSDF takes the light.
+            # straight_through, every light but the environment): straight out, times the Fresnel transmittance, the
+            # beam's compression and, in a homogeneous medium, the refracted path's length inside (Eq. W4). A rough one
+            # is left to the next-event estimation at the boundary, where its BSDF takes the light.
             which, eta = self.classify(si)
             smooth = ~mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-            straight = ds.delta | self.straight_through
+            straight = ds.delta | (self.straight_through & ~mi.has_flag(ds.emitter.flags(), mi.EmitterFlags.Infinite))
             cos = dr.dot(si.n, ray.d)  # > 0: leaving along the outward normal
             through = inside & (cos > 0.0) & active_surface & straight & (which >= 0) & smooth & (dr.max(passed) == 0.0)
             crossed |= through
