@@ -118,6 +118,26 @@ def test_the_boundary_index_is_fitted_with_the_material(mi):
     assert etas and all(e == pytest.approx(1.35) for e in etas)
 
 
+def test_the_walks_boundary_takes_each_material_s_index_back_to_the_scene_s(mi):
+    """A walked evaluation at the scene's own index after one at another gives the boundary's BSDF the scene's back
+    (it kept the other one, as the walk's objects keep the scene's index: _initial_eta's candidate at the scene's
+    index rendered the BSDF at the one before)."""
+    from convsss.fitting import NO_ROULETTE, Forward
+    from convsss.scene.quick import demo_mesh, quick_scene
+
+    skin = convsss.material("skin1")
+    walks = {"type": "convsss", "indirect_samples": 0, "rr_depth": NO_ROULETTE}
+    scene = mi.load_dict(quick_scene(demo_mesh(), material_of(skin.albedo_prime, skin.mfp_mm, 1.35), 20.0, width=8,
+                                     height=8, spp=1, boundary="dielectric", integrator=walks))
+    integrator, sensor = mi.load_dict(walks), scene.sensors()[0]
+    integrator.prepare(scene, sensor, 0)
+    forward = Forward(scene, integrator, sensor, 0, 0, 1, walks=True)
+    shape = forward.obj.shape
+    for eta in (1.5, forward.obj.eta):  # the scene's own, as the fit's start is when the scene's material is
+        forward(material_of(skin.albedo_prime, skin.mfp_mm, eta))
+        assert mi.traverse(shape)["bsdf.eta"] == pytest.approx(eta)
+
+
 @pytest.fixture
 def scene_file(tmp_path):
     result = CliRunner().invoke(cli, ["scene", "--material", "skin1", "--size-mm", "20", "--boundary", "null",

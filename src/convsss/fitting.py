@@ -118,13 +118,15 @@ class Forward:
     """The render of ``scene`` through ``sensor`` with object ``index``'s material set, (H, W, 3) float64.
 
     ``integrator`` is a ``convsss`` integrator; ``seed`` and ``spp`` fixed for every evaluation; ``walks``: its
-    renders are random walks (their trial material weighs paths drawn by the scene's medium), else the transport's.
+    renders are random walks (each drawn by its own material, or one it is given), else the transport's.
     See the module docstring for what each evaluation reuses; ``evaluations`` and ``seconds`` count them."""
 
     def __init__(self, scene, integrator, sensor, index, seed=0, spp=4, walks=False):
         self.scene, self.integrator, self.sensor, self.index = scene, integrator, sensor, index
         self.seed, self.spp, self.walks = seed, spp, walks
         self.evaluations, self.seconds = 0, 0.0
+        #: The index the boundary's BSDF has now (None: the scene's).
+        self._eta = None
         #: The material the next evaluation sizes the samples by and draws the paths with (:meth:`replan`).
         self._replan = None
 
@@ -141,8 +143,9 @@ class Forward:
         """The render of ``material``; with walks, their paths drawn by ``drawn`` (default: ``material`` itself), so
         that renders of materials near ``drawn`` differ smoothly (the Jacobian's)."""
         start = time.perf_counter()
-        if material.eta != self.obj.eta:
+        if material.eta != (self._eta or self.obj.eta):
             _set_boundary_eta(self.obj.shape, material.eta)
+            self._eta = material.eta
         if self.walks:
             image = self._walked(material, drawn or material)
         else:
