@@ -131,9 +131,9 @@ def render_parameters():
                   "0 renders with the transport alone (paper Eq. 7); inf follows every walk to its end, which is "
                   "Mitsuba's volpathmis for those objects. auto: the transport where diffusion holds on every "
                   "object (at least 20 transport mean free paths across its mean chord 4V/A, reduced albedo at least "
-                  "0.95), else walks to their end with every light sampled straight through smooth boundaries (Eq. "
-                  "W4): where diffusion fails walks are short. Where a transport is named and walk_depth is not, "
-                  "0.", low=0.0, infinite=True, words=("auto",)),
+                  "0.95), else walks to their end with every light but the environment sampled straight through "
+                  "smooth boundaries (Eq. W4): where diffusion fails walks are short. Where a transport is named "
+                  "and walk_depth is not, 0.", low=0.0, infinite=True, words=("auto",)),
         Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
                   "light; -1 is unbounded with Russian roulette; 0 is not allowed).", low=-1),
         Parameter("rr_depth", int, 5, "Depth from which Russian roulette may end paths.", low=1),
@@ -190,9 +190,9 @@ def plugin_parameters():
 def resolve_walk_depth(params, objects):
     """``(params, straight)``: ``params`` with ``walk_depth = auto`` made a number for the translucent ``objects``: 0
     (the transport) where diffusion holds on every one (:meth:`~.objects.TranslucentObject.diffusion_holds`), else inf;
-    ``straight`` whether the walks then take every light straight through smooth boundaries (Eq. W4), which auto's do
-    (at inf otherwise only a delta light's, so that the walk stays ``volpathmis``). Other params are returned as
-    they are."""
+    ``straight`` whether the walks then take every light but the environment straight through smooth boundaries
+    (Eq. W4), which auto's do (at inf otherwise only a delta light's, so that the walk stays ``volpathmis``). Other
+    params are returned as they are."""
     if params.walk_depth != "auto":
         return params, False
     walk = not all(obj.diffusion_holds() for obj in objects)

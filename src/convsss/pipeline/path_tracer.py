@@ -126,8 +126,8 @@ class PathTracer:
     stop : callable, optional
         Asked between bounces; when it returns True the paths end there (Ctrl-C during Mitsuba's render).
     straight : bool
-        Whether walks take every light straight through smooth boundaries (Eq. W4) at any ``walk_depth``
-        (:func:`~.params.resolve_walk_depth`).
+        Whether walks take every light but the environment straight through smooth boundaries (Eq. W4) at any
+        ``walk_depth`` (:func:`~.params.resolve_walk_depth`).
     """
 
     def __init__(self, scene, objects, params, stop=None, straight=False):
@@ -157,7 +157,8 @@ class PathTracer:
         #: The objects a shadow ray passes, dimmed (index-matched boundary, homogeneous interior): :meth:`_shadow`.
         self.see_through = [obj.boundary == "null" and obj.classes is None for obj in objects]
         #: With ``walk_depth`` > 0, the camera's paths walk through the objects' media (:mod:`.walk`); with
-        #: ``straight``, every light reaches them straight through smooth boundaries (walk_depth auto's walks).
+        #: ``straight``, every light but the environment reaches them straight through smooth boundaries (walk_depth
+        #: auto's walks).
         self.walk = (RandomWalk(scene, params, self.classify, self.per_emitter, straight) if params.walk_depth > 0
                      else None)
         self.attach([None] * len(objects))
