@@ -182,9 +182,9 @@ def scene_pair(name, width, folder):
 
 
 def bench_media_scene(name, width, folder, reference_spp=REFERENCE_SPP, runs=3, bar=None):
-    """One row (module docstring): ``{scene, width, classes, samples, convsss_s, twin_s, cost_ratio, mean_ratio,
-    twin_mean_ratio, medium_ratio, mean_rel_error, reference_mean_rel_error, relmse_excess, reference_noise}``, or
-    for ``constant-block`` ``{..., identical, max_rel_difference}``."""
+    """One row (module docstring): ``{scene, width, classes, samples, walk_depth, convsss_s, twin_s, cost_ratio,
+    mean_ratio, twin_mean_ratio, medium_ratio, mean_rel_error, reference_mean_rel_error, relmse_excess,
+    reference_noise}``, or for ``constant-block`` ``{..., identical, max_rel_difference}``."""
     import json
 
     from ..compare import metrics, prepare
@@ -209,8 +209,9 @@ def bench_media_scene(name, width, folder, reference_spp=REFERENCE_SPP, runs=3, 
             tick(f"render {key}")
     test, mask = _image(folder / f"{name}-{width}-scene.exr")
     stats = json.loads((folder / f"{name}-{width}-scene.json").read_text())
-    row = {"scene": name, "width": width, "classes": stats["transports"][0].get("classes", 1),
-           "samples": stats["objects"][0]["samples"], "convsss_s": statistics.median(seconds["scene"]),
+    # What the default rendered (walks draw no surface samples), and the object's classes (its survey's).
+    row = {"scene": name, "width": width, "classes": stats["objects"][0]["classes"], "samples": stats["samples"],
+           "walk_depth": stats["walk_depth"], "convsss_s": statistics.median(seconds["scene"]),
            "twin_s": statistics.median(seconds["twin"])}
     row["cost_ratio"] = row["convsss_s"] / row["twin_s"]
     if name == "constant-block":
@@ -263,12 +264,12 @@ def media_table(result):
     def rgb(values, digits=3):
         return "/".join(f"{v:.{digits}f}" for v in values)
 
-    lines = [f"{'scene':>17} {'classes':>7} {'samples':>8} {'convsss s':>9} {'twin s':>6} {'cost':>5} "
+    lines = [f"{'scene':>17} {'classes':>7} {'walk':>4} {'samples':>8} {'convsss s':>9} {'twin s':>6} {'cost':>5} "
              f"{'mean ratio R/G/B':>17} {'twin ratio':>17} {'medium ratio':>17} {'mean rel err':>17} "
              f"{'ref own':>17} {'relMSE excess':>20} {'ref noise':>20}"]
     for r in result["rows"]:
-        head = (f"{r['scene']:>17} {r['classes']:>7} {r['samples']:>8} {r['convsss_s']:>9.2f} {r['twin_s']:>6.2f} "
-                f"{r['cost_ratio']:>5.2f}")
+        head = (f"{r['scene']:>17} {r['classes']:>7} {r['walk_depth']:>4} {r['samples']:>8} {r['convsss_s']:>9.2f} "
+                f"{r['twin_s']:>6.2f} {r['cost_ratio']:>5.2f}")
         if "identical" in r:
             lines.append(f"{head}  renders as the twin: {'bit for bit' if r['identical'] else 'no'} "
                          f"(largest difference {r['max_rel_difference']:.2g} of the peak)")

@@ -164,7 +164,8 @@ class TranslucentObject:
     def summary(self):
         """JSON-ready description for the render statistics."""
         return {"name": self.name, "boundary": self.boundary, "eta": self.eta, "area_mm2": self.area_mm2,
-                "extent_mm": self.extent_mm, "chord_mm": self.chord_mm, "diffusion_holds": self.diffusion_holds(),
+                "classes": len(self.materials), "extent_mm": self.extent_mm, "chord_mm": self.chord_mm,
+                "diffusion_holds": self.diffusion_holds(),
                 "bbox_mm": self.bbox_mm.tolist(),
                 "sigma_s_prime_per_mm": self.material.sigma_s_prime.tolist(),
                 "sigma_a_per_mm": self.material.sigma_a.tolist(),
