@@ -160,14 +160,15 @@ class Forward:
         import mitsuba as mi
 
         from .pipeline.objects import phase_g
+        from .scene.materials import medium_parameters
 
         medium = self.obj.shape.interior_medium()
         params = mi.traverse(medium)
         g, unit_mm = phase_g(params), self.integrator.params.unit_mm
-        _set_medium(params, *medium_coefficients(drawn, g, unit_mm))
-        walk = self.integrator.session.tracer.walk
-        sigma_t, sigma_s = medium_coefficients(material, g, unit_mm)
-        walk.evaluated = [(mi.MediumPtr(medium), mi.Color3f(*sigma_t.tolist()), mi.Color3f(*sigma_s.tolist()))]
+        _set_medium(params, medium_parameters(unreduced(drawn, g), unit_mm))
+        weighed = unreduced(material, g)
+        sigma_t, sigma_s = (mi.Color3f(*(c * unit_mm).tolist()) for c in (weighed.sigma_t_prime, weighed.sigma_s_prime))
+        self.integrator.session.tracer.walk.evaluated = [(mi.MediumPtr(medium), sigma_t, sigma_s)]
         return np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
 
     def _transported(self, material):
@@ -294,6 +295,10 @@ class _Problem:
         values = image[self.inside]
         return np.stack([np.bincount(self.cells, values[:, c]) for c in range(3)], axis=1) / self.cell_count
 
+    def shape_cost(self, material):
+        """Per channel, :func:`_brightness_free_cost` of ``material``'s render (one evaluation)."""
+        return _brightness_free_cost(self.pool(self.forward(material)), self.goal, self.weight)
+
     def split(self, x):
         """``(albedo, mfp, exposure, eta)`` of the variables ``x``."""
         albedo, mfp = self.variables.decode(x)
@@ -405,12 +410,12 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     target, mask = _checked_images(target, mask, width, height)
     named = scene.integrator()
     params = named.params.to_dict() if isinstance(named, ConvsssIntegrator) else {}
-    unit_mm = RenderParams(**params).unit_mm
-    found = find_translucent_objects(mi, scene, unit_mm)
+    asked = RenderParams(**params)
+    found = find_translucent_objects(mi, scene, asked.unit_mm)
     name = _object_to_fit(found, object, fit_eta)
     # The default render's forward model (module doc): walks where it walks to the end, else the transport's.
     chosen = next(o for o in found if o.name == name)
-    walking = resolve_walk_depth(RenderParams(**params), found)[0].walk_depth
+    walking = resolve_walk_depth(asked, found)[0].walk_depth
     walks = walking == math.inf and chosen.classes is None
     integrator = mi.load_dict({"type": "convsss", **params, **({"rr_depth": NO_ROULETTE} if walks else
                                                                {"walk_depth": 0.0})})
@@ -438,9 +443,9 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     begun = time.perf_counter()
     held = _medium_values(forward.obj.shape.interior_medium()) if walks else {}
     try:
-        mfp0 = _initial_mfp(forward, eta0, albedo0, mfp0, problem)
+        mfp0 = _initial_mfp(eta0, albedo0, mfp0, problem)
         if fit_eta:
-            eta0 = _initial_eta(forward, eta0, albedo0, mfp0, problem)
+            eta0 = _initial_eta(eta0, albedo0, mfp0, problem)
         solution = problem.solve(problem.start(albedo0, mfp0, eta0), max_evaluations)
         albedo, mfp, scale, eta = problem.split(solution.x)
         planned = base.mfp_mm
@@ -474,27 +479,24 @@ def _brightness_free_cost(image, goal, weight):
     return np.sum(((scale * image - goal) * weight) ** 2, axis=0)
 
 
-def _initial_eta(forward, eta, albedo, mfp, problem):
+def _initial_eta(eta, albedo, mfp, problem):
     """The start's boundary index or one of :data:`ETA_START_VALUES`, whichever renders the target's shape best
     (:func:`_brightness_free_cost`, summed over the channels): one evaluation each. Fitted from one index only, the
     albedo can take up the brightness the index should explain and the fit end in a valley beside the start (as a
     small skin1 bunny started below its true index did)."""
     candidates = sorted({float(np.clip(e, *ETA_BOUNDS)) for e in (eta, *ETA_START_VALUES)})
-    costs = [np.sum(_brightness_free_cost(problem.pool(forward(material_of(albedo, mfp, e))), problem.goal,
-                                          problem.weight))
-             for e in candidates]
+    costs = [np.sum(problem.shape_cost(material_of(albedo, mfp, e))) for e in candidates]
     return candidates[int(np.argmin(costs))]
 
 
-def _initial_mfp(forward, eta, albedo, mfp, problem):
+def _initial_mfp(eta, albedo, mfp, problem):
     """Per channel, the start's mean free path times the one of :data:`MFP_START_FACTORS` whose render matches the
     target's shape best (:func:`_brightness_free_cost`, so that a wrong colour does not pick the blur): the channels
     render together, one evaluation per factor. A least-squares fit from a mean free path far off can settle where
     the image no longer depends on it (an object looking opaque, or clear)."""
     best, chosen = np.full(3, np.inf), np.array(mfp, dtype=np.float64)
     for factor in MFP_START_FACTORS:
-        cost = _brightness_free_cost(problem.pool(forward(material_of(albedo, mfp * factor, eta))), problem.goal,
-                                     problem.weight)
+        cost = problem.shape_cost(material_of(albedo, mfp * factor, eta))
         better = cost < best
         best[better], chosen[better] = cost[better], (mfp * factor)[better]
     return np.clip(chosen, *MFP_BOUNDS_MM)
@@ -518,23 +520,23 @@ def _deviations(solution, variables, albedo, mfp):
     return sd[:3] * slope, sd[3:6] * mfp, sd
 
 
-def medium_coefficients(material, g, unit_mm):
-    """A medium's ``(sigma_t, sigma_s)`` (3,) per scene unit of ``unit_mm`` mm that has ``material``'s reduced
-    coefficients under a phase function of mean cosine ``g``: ``sigma_s = sigma_s' / (1 - g)`` (the similarity
-    relation), ``sigma_t = sigma_s + sigma_a``."""
-    sigma_s = material.sigma_s_prime / (1.0 - g)
-    return (sigma_s + material.sigma_a) * unit_mm, sigma_s * unit_mm
+def unreduced(material, g):
+    """``material``'s coefficients under a phase function of mean cosine ``g``, as the :class:`~convsss.materials.
+    Material` of an isotropic one (``sigma_s = sigma_s' / (1 - g)``, the similarity relation; ``sigma_a`` as it is):
+    what a Mitsuba medium of that phase function holds."""
+    from .materials import Material
+
+    return Material(material.sigma_s_prime / (1.0 - g), material.sigma_a, material.eta, material.name)
 
 
-def _set_medium(params, sigma_t, sigma_s):
-    """Give a Mitsuba homogeneous medium (its traversed ``params``) the coefficients ``sigma_t``, ``sigma_s`` (3,
-    per scene unit): ``scale`` the largest extinction, ``sigma_t`` the rest; a grey coefficient (one value) the
-    channels' mean."""
+def _set_medium(params, coefficients):
+    """Give a Mitsuba homogeneous medium (its traversed ``params``) the ``coefficients`` of
+    :func:`~convsss.scene.materials.medium_parameters`; a grey coefficient (one value) the channels' mean."""
     import mitsuba as mi
 
-    scale = float(np.max(sigma_t))
-    params["scale"] = scale
-    for name, value in (("sigma_t", sigma_t / scale), ("albedo", np.clip(sigma_s / sigma_t, 0.0, 1.0))):
+    params["scale"] = coefficients["scale"]
+    for name in ("sigma_t", "albedo"):
+        value = coefficients[name]
         key = f"{name}.value.value" if f"{name}.value.value" in params else f"{name}.value"
         held = params[key]
         params[key] = type(held)(*value.tolist()) if isinstance(held, mi.Color3f) else type(held)(float(np.mean(value)))

@@ -156,7 +156,7 @@ def test_paths_drawn_by_one_medium_and_weighed_by_another_render_the_other(mi, s
     skin2's coefficients (mean free paths 0.6-0.9 of skin1's, albedos higher), render the skin2 sphere within both
     renders' noise, as the skin2 sphere walked by its own medium (two seeds each; without Russian roulette, as a fit
     walks). It fails with the weights left the drawn medium's (a darker image)."""
-    from convsss.fitting import NO_ROULETTE, medium_coefficients
+    from convsss.fitting import NO_ROULETTE
 
     def images(material, weighed=None):
         scene = mi.load_dict(sphere_scene(material=material, radius=1.0, res=RES, floor=True,
@@ -165,9 +165,9 @@ def test_paths_drawn_by_one_medium_and_weighed_by_another_render_the_other(mi, s
         integrator.prepare(scene, scene.sensors()[0])
         if weighed is not None:
             medium = next(s for s in scene.shapes() if s.interior_medium() is not None).interior_medium()
-            sigma_t, sigma_s = medium_coefficients(convsss.material(weighed), 0.0, 1.0)
-            integrator.session.tracer.walk.evaluated = [(mi.MediumPtr(medium), mi.Color3f(*sigma_t.tolist()),
-                                                         mi.Color3f(*sigma_s.tolist()))]
+            other = convsss.material(weighed)  # isotropic, in mm: its coefficients as they are
+            sigma_t, sigma_s = (mi.Color3f(*c.tolist()) for c in (other.sigma_t_prime, other.sigma_s_prime))
+            integrator.session.tracer.walk.evaluated = [(mi.MediumPtr(medium), sigma_t, sigma_s)]
         return [np.array(integrator.render_prepared(spp=SPP, seed=s), dtype=np.float64)[..., :3] for s in (1, 2)]
 
     ours, truth = images("skin1", weighed="skin2"), images("skin2")

@@ -42,7 +42,7 @@ def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=None, progress=Tru
     and ``truth_ratio`` (mean render / mean target)."""
     import convsss
 
-    from ..fitting import fit, material_of
+    from ..fitting import WALK_SPP, fit, material_of
     from ..pipeline.reference import render_reference
 
     mi = convsss.register()
@@ -61,7 +61,8 @@ def bench_fit(cases=CASES, width=128, reference_spp=1024, spp=None, progress=Tru
         inside = result.mask
         target = refs[0][inside]
         noise = np.sqrt(np.mean(((refs[0] - refs[1])[inside] / np.sqrt(2)) ** 2, axis=0)) / target.mean(axis=0)
-        at_truth = np.array(convsss.render(_scene(mi, truth, light, width), seed=0, spp=spp or 16))[..., :3][inside]
+        at_truth = np.array(convsss.render(_scene(mi, truth, light, width), seed=0, spp=spp or WALK_SPP))
+        at_truth = at_truth[..., :3][inside]
         rows.append({"name": name, "light": light, "width": width,
                      "truth": {"albedo": truth.albedo_prime.tolist(), "mfp_mm": truth.mfp_mm.tolist()},
                      "start": {"albedo": start.albedo_prime.tolist(), "mfp_mm": start.mfp_mm.tolist()},

@@ -76,7 +76,7 @@ def scene_dict(scene, resolution=800):
     out = quick_scene(mesh, bench_material(scene.material), size_mm, resolution, resolution, boundary=boundary)
     if lighting == "back":
         out.pop("key_light")
-    if lighting in ("area", "side", "sun", "environment"):
+    if lighting in DIELECTRIC_LIGHTINGS + ROUGH_LIGHTINGS:
         from ..backend import load_mitsuba
 
         transform = load_mitsuba().ScalarTransform4f
