@@ -38,6 +38,7 @@ from ..fresnel import same_eta
 from ..hashtable import capacity, empty, probe
 from ..profiles.incidence import GAIN_NODES, Orders, gain_table
 from .mis import power_heuristic
+from .shadow import Shadows
 from .surface import sample_surface
 
 mi = load_mitsuba()
@@ -114,56 +115,16 @@ def keeps_irradiance(old, new, incidence, orders=Orders.ALL):
     return same_eta(old.eta, new.eta) and (not gained or same_albedo)
 
 
-def _delta_irradiance(scene, emitters, it, entry):
+def _delta_irradiance(emitters, it, entry, shadows):
     """``sum_e F_t cos I_e/r^2 T`` over the delta emitters ``emitters`` (exact: one deterministic sample each), ``T``
-    the shadow ray's transmittance (:func:`shadow_transmittance`)."""
+    what the shadow ray lets through (:meth:`.shadow.Shadows.transmittance`)."""
     total = dr.zeros(mi.Color3f, dr.width(it.p))
     for emitter in emitters:
         ds, weight = emitter.sample_direction(it, mi.Point2f(0.5, 0.5), True)
         cos = dr.dot(it.n, ds.d)
         lit = (cos > 0) & (ds.pdf > 0)
-        total += dr.select(lit, weight * cos * entry(cos) * shadow_transmittance(scene, it.spawn_ray_to(ds.p), lit),
-                           0.0)
+        total += dr.select(lit, weight * cos * entry(cos) * shadows.visibility(it, ds, lit), 0.0)
     return total
-
-
-#: The most surfaces a shadow ray crosses (index-matched boundaries of translucent objects) before it counts as
-#: blocked.
-MAX_CROSSINGS = 16
-
-
-def shadow_transmittance(scene, ray, active):
-    """What of a delta light's beam along ``ray`` (to the light, ``maxt`` its distance) arrives: 0 behind an opaque
-    surface or a dielectric, and through an index-matched (null) boundary of a homogeneous medium the light that
-    crosses it unscattered, ``e^{-sigma_t l}`` over the chord ``l`` (issue 51: a point light's shadow rays had
-    stopped at a translucent occluder, so light through an ear onto the head was missing). In a heterogeneous medium
-    ``sigma_t`` is the chord's midpoint's (exact where only the albedo varies, as in a constant volume or veins of
-    albedo; the midpoint rule of the optical depth elsewhere): it had blocked the light, so that a constant volume no
-    longer rendered as its homogeneous medium (0.5 % of the peak apart on a marble block, at its edges' chords)."""
-    n = dr.width(ray.o)
-    ray = mi.Ray3f(ray)
-    transmittance = dr.select(active, mi.Color3f(1.0), mi.Color3f(0.0))
-    medium = dr.zeros(mi.MediumPtr, n)
-    active = mi.Bool(active)
-    for _ in range(MAX_CROSSINGS):
-        si = scene.ray_intersect(ray, active)
-        inside = active & (medium != None)  # noqa: E711 (a Dr.Jit pointer array)
-        if dr.any(inside):  # the segment just crossed lies in ``medium``: its unscattered light
-            mei = dr.zeros(mi.MediumInteraction3f, n)
-            mei.p, mei.medium = ray(0.5 * dr.minimum(si.t, ray.maxt)), medium
-            _, _, sigma_t = medium.get_scattering_coefficients(mei, inside)
-            transmittance[inside] *= dr.exp(-sigma_t * dr.minimum(si.t, ray.maxt))
-        hit = active & si.is_valid()
-        if not dr.any(hit):
-            return transmittance
-        null = hit & (dr.max(si.bsdf(ray).eval_null_transmission(si, hit)) > 0.0)
-        transmittance[hit & ~null] = 0.0
-        medium[null & si.is_medium_transition()] = si.target_medium(ray.d)
-        remaining = ray.maxt - si.t
-        ray[null] = si.spawn_ray(ray.d)
-        ray.maxt[null] = remaining
-        active = null & (remaining > 0)
-    return dr.select(active, 0.0, transmittance)
 
 
 def _area_irradiance(scene, emitters, it, entry, rng):
@@ -191,7 +152,8 @@ def _area_irradiance(scene, emitters, it, entry, rng):
     return total
 
 
-def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, albedo=None, orders=Orders.ALL):
+def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, albedo=None, orders=Orders.ALL,
+                       shadows=None):
     """``E_i`` (N, 3) numpy at the points ``position`` with outward ``normal`` (Dr.Jit arrays, scene units).
 
     Parameters
@@ -207,8 +169,12 @@ def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, a
         The medium's reduced albedo: each direction weighted by its oblique-incidence gain (:class:`Entry`).
     orders : str
         The light the gain is of (:class:`Entry`).
+    shadows : Shadows, optional
+        The scene's shadow rays (:class:`.shadow.Shadows`, through its translucent objects); None: a scene without
+        translucent objects, whose shadow rays every surface stops.
     """
     n = dr.width(position)
+    shadows = shadows or Shadows(scene, [], 1.0)
     entry = Entry(eta, albedo, orders)
     delta = [e for e in scene.emitters() if mi.has_flag(e.flags(), mi.EmitterFlags.Delta)]
     other = [e for e in scene.emitters() if not mi.has_flag(e.flags(), mi.EmitterFlags.Delta)]
@@ -220,7 +186,7 @@ def surface_irradiance(scene, position, normal, eta, irradiance_samples, seed, a
         index = dr.arange(mi.UInt32, start, stop)
         p = dr.gather(mi.Point3f, position, index)
         nrm = dr.gather(mi.Vector3f, normal, index)
-        e = _delta_irradiance(scene, delta, _interaction(p, nrm), entry)
+        e = _delta_irradiance(delta, _interaction(p, nrm), entry, shadows)
         if other:
             lanes = (stop - start) * irradiance_samples
             owner = dr.arange(mi.UInt32, lanes) // irradiance_samples
@@ -385,7 +351,7 @@ def sample_count(area_mm2, cell_mm, sample_density, profile_area_mm2=math.inf, p
 
 
 def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=0, stage=None, oblique=False,
-                   orders=Orders.ALL):
+                   orders=Orders.ALL, shadows=None):
     """Scene -> samples, the data flow's first arrow: about ``count`` stratified points over the whole surface of the
     translucent object ``obj``, with their area, outward normal and irradiance (paper Eq. 2), in mm.
 
@@ -405,6 +371,8 @@ def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=
         ``stage(name)`` returns a context manager timing the stage ``samples``, then ``irradiance``.
     oblique : bool
         Weight each direction by the medium's oblique-incidence gain (:class:`Entry`) of the light of ``orders``.
+    shadows : Shadows, optional
+        The scene's shadow rays (:func:`surface_irradiance`).
 
     Returns
     -------
@@ -423,5 +391,6 @@ def object_samples(scene, obj, count, irradiance_samples, unit_mm, seed, stream=
         normal_np = to_numpy3(normal, np.float64)
     with stage("irradiance"):
         irradiance = surface_irradiance(scene, position, normal, obj.eta, irradiance_samples, seed + 7919 * stream,
-                                        albedo=obj.material.albedo_prime if oblique else None, orders=orders)
+                                        albedo=obj.material.albedo_prime if oblique else None, orders=orders,
+                                        shadows=shadows)
         return IrradianceSamples(position_mm, area_mm2, irradiance, normal_np)

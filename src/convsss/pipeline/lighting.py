@@ -44,7 +44,8 @@ def light_samples(scene, objects, plan, params, seed, tracer, stage=None, stop=N
     p = params
     shown = [objects[q.index] for q in plan.objects]
     direct = [object_samples(scene, objects[q.index], q.samples, p.irradiance_samples, p.unit_mm, seed,
-                             stream=q.index, stage=stage, oblique=p.incidence == "oblique", orders=p.orders)
+                             stream=q.index, stage=stage, oblique=p.incidence == "oblique", orders=p.orders,
+                             shadows=tracer.shadows)
               for q in plan.objects]
     # Indirect light needs a path of at least 3 segments (camera, the object, a bounce, an emitter).
     if p.indirect_samples == 0 or 0 < p.max_depth < 3 or not shown:

@@ -75,10 +75,10 @@ import numpy as np
 
 from ..backend import load_mitsuba, to_numpy3
 from ..profiles.incidence import Orders, exit_normalization
-from .irradiance import MAX_CROSSINGS, Entry, fresnel_transmittance, refracted_cosine
+from .irradiance import Entry, fresnel_transmittance, refracted_cosine
 from .mesh_exitance import MeshExitance, usable
 from .mis import power_heuristic
-from .objects import hit_indices
+from .shadow import Shadows, classify
 from .walk import RandomWalk
 
 mi = load_mitsuba()
@@ -128,9 +128,11 @@ class PathTracer:
     straight : bool
         Whether walks take every light but the environment straight through smooth boundaries (Eq. W4) at any
         ``walk_depth`` (:func:`~.params.resolve_walk_depth`).
+    shadows : Shadows, optional
+        The scene's shadow rays (:class:`.shadow.Shadows`) when ``objects`` are not all its translucent objects.
     """
 
-    def __init__(self, scene, objects, params, stop=None, straight=False):
+    def __init__(self, scene, objects, params, stop=None, straight=False, shadows=None):
         self.scene, self.objects, self.params = scene, objects, params
         self.stop = stop
         #: Each object's exit gain (:class:`Leaving`), ``None`` with ``incidence`` normal (paper Eq. 7 alone).
@@ -154,8 +156,8 @@ class PathTracer:
         self._tags = self._weight = None
         #: Up to this many emitters, direct light samples each of them (else one chosen by the scene).
         self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
-        #: The objects a shadow ray passes, dimmed (index-matched boundary, homogeneous interior): :meth:`_shadow`.
-        self.see_through = [obj.boundary == "null" and obj.classes is None for obj in objects]
+        #: The shadow rays, through every translucent object of the scene (``shadows``, or this tracer's ``objects``).
+        self.shadows = shadows or Shadows(scene, objects, params.unit_mm)
         #: With ``walk_depth`` > 0, the camera's paths walk through the objects' media (:mod:`.walk`); with
         #: ``straight``, every light but the environment reaches them straight through smooth boundaries (walk_depth
         #: auto's walks).
@@ -184,20 +186,9 @@ class PathTracer:
 
     # --- per-bounce pieces ----------------------------------------------------------------------------------------
     def classify(self, si):
-        """Per lane: the index of the translucent object hit (mi.Int32, -1: none) and its eta (mi.Float).
-
-        An object is the pair (instance, shape): an instanced shape is shared by every instance of its shapegroup,
-        and ``si.instance`` is null (index 0) on a plain shape.
-        """
-        shapes, instances = hit_indices(mi, si)
-        valid = si.is_valid()
-        which = dr.full(mi.Int32, -1, dr.width(si.p))
-        eta = dr.full(mi.Float, 1.0, dr.width(si.p))
-        for k, obj in enumerate(self.objects):
-            on_object = valid & obj.hit(shapes, instances)
-            which = dr.select(on_object, k, which)
-            eta = dr.select(on_object, obj.eta, eta)
-        return which, eta
+        """Per lane, the index of the translucent object hit (mi.Int32, -1: none) and its eta (mi.Float)
+        (:func:`.shadow.classify`)."""
+        return classify(self.objects, si)
 
     def _leaving(self, which, eta, cos):
         """Per lane, the weight of ``M`` towards the viewer at ``cos`` on the object ``which`` of index ``eta``:
@@ -268,54 +259,19 @@ class PathTracer:
     def _light_samples(self, it, u, active, test_visibility=True):
         """Emitter samples ``(ds, L/pdf)`` at ``it``: one per emitter when there are few (no selection noise), else
         one emitter picked by the scene (as Mitsuba's ``path`` does); with ``test_visibility``, ``L/pdf`` is what
-        a shadow ray from ``it`` (a surface interaction) lets through (:meth:`_shadow`)."""
+        a shadow ray from ``it`` (a surface interaction) lets through (:meth:`.shadow.Shadows.visibility`)."""
         if not self.per_emitter:
-            if not any(self.see_through):
+            if not self.shadows.any_passes:
                 return [self.scene.sample_emitter_direction(it, u, test_visibility, active)]
             ds, light = self.scene.sample_emitter_direction(it, u, False, active)
-            return [(ds, light * self._shadow(it, ds, active & (ds.pdf > 0)) if test_visibility else light)]
+            return [(ds, light * self.shadows.visibility(it, ds, active & (ds.pdf > 0)) if test_visibility else light)]
         out = []
         for emitter in self.scene.emitters():
             ds, light = emitter.sample_direction(it, u, active)
             if test_visibility:
-                light = light * self._shadow(it, ds, active & (ds.pdf > 0))
+                light = light * self.shadows.visibility(it, ds, active & (ds.pdf > 0))
             out.append((ds, light))
         return out
-
-    def _shadow(self, it, ds, active):
-        """What of the light of emitter sample ``ds`` reaches ``it`` along the shadow ray (Color3f): 0 behind an opaque
-        or dielectric surface, and through a translucent object of index-matched boundary and homogeneous interior
-        the light that crosses it unscattered, ``e^{-sigma_t' l}`` over the chord (Eq. S3), up to
-        :data:`~.irradiance.MAX_CROSSINGS` surfaces (issue 51: a point light's shadow rays had stopped at such an
-        occluder, so the floor under a thin translucent part was as dark as under an opaque one)."""
-        if not any(self.see_through):
-            return dr.select(active & ~self.scene.ray_test(it.spawn_ray_to(ds.p), active), mi.Color3f(1.0), 0.0)
-        return self._stepped_shadow(it, ds, active)
-
-    @dr.syntax
-    def _stepped_shadow(self, it, ds, active):
-        """:meth:`_shadow` where some objects let light through: the shadow ray stepped from surface to surface."""
-        transmittance = dr.select(active, mi.Color3f(1.0), mi.Color3f(0.0))
-        ray = it.spawn_ray_to(ds.p)
-        inside = dr.full(mi.Int32, -1, dr.width(transmittance))
-        crossings = mi.UInt32(0)
-        while active:
-            si = self.scene.ray_intersect(ray, active)
-            hit = active & si.is_valid()
-            chord = dr.select(hit, si.t, ray.maxt) * dr.norm(ray.d)
-            transmittance[active & (inside >= 0)] *= dr.exp(-self._extinction(inside) * chord)
-            which, _ = self.classify(si)
-            through = dr.zeros(mi.Bool, dr.width(transmittance))
-            for k, passes in enumerate(self.see_through):
-                if passes:
-                    through |= hit & (which == k)
-            transmittance[hit & ~through] = 0.0
-            inside[through] = dr.select(inside == which, -1, which)
-            crossings += 1
-            active = through & (crossings < MAX_CROSSINGS)
-            transmittance[through & ~active] = 0.0
-            ray[active] = si.spawn_ray_to(ds.p)
-        return transmittance
 
     def _direct(self, si, bsdf, ray_d, eta, translucent, opaque, alive, ds, light):
         """One emitter sample's contribution: the BSDF (power-heuristic MIS) on opaque shapes; on translucent ones the

@@ -47,6 +47,7 @@ from .passes import build_transports, translucent_passes
 from .path_tracer import PathTracer
 from .plan import plan_samples
 from .screen import ScreenExitance
+from .shadow import Shadows
 
 mi = load_mitsuba()
 
@@ -219,7 +220,8 @@ class RenderSession:
         shown_at = [seen[q.index] for q in plan.objects]
         cells = [q.pixel_footprint_mm for q in plan.objects]
         per_object = [{**obj.summary(), **q.summary(obj.area_mm2)} for obj, q in zip(shown, plan.objects)]
-        tracer = PathTracer(scene, shown, p, stop=self.stop, straight=straight)
+        tracer = PathTracer(scene, shown, p, stop=self.stop, straight=straight,
+                            shadows=Shadows(scene, objects, p.unit_mm))
         if self.walks_alone:  # the walk reaches every interior itself: no samples, irradiance or transports
             self._attach(tracer, [None] * len(shown), None)
             self.stats = {"parameters": asked, "walk_depth": f"{p.walk_depth:g}", "seconds": dict(timer),
