@@ -18,7 +18,8 @@ class Parameter:
     Numbers must lie in ``[low, high]`` (``(low, high]`` with ``low_open``); strings (and numbers, when given) must
     be one of ``choices``; a number may be ``inf`` only where ``infinite``. A ``None`` default makes the parameter
     optional. ``exposed = False`` marks a value the renderer sets itself (e.g. the pixel footprint), not a user option.
-    A number parameter also takes each of its ``words`` (e.g. ``"auto"``), kept as the word.
+    A number parameter also takes each of its ``words`` (e.g. ``"auto"``), kept as the word, and a number written as
+    text (``"inf"``, ``"2"``, ``"1e300"``: a scene file's ``<string>``), read as the number.
     """
 
     name: str
@@ -65,9 +66,15 @@ class Parameter:
             if not isinstance(value, str) or (self.choices and value not in self.choices):
                 raise bad
             return value
-        if isinstance(value, str) and value in self.words:
-            return value
-        if isinstance(value, (bool, str)):
+        if isinstance(value, str) and value.strip() in self.words:
+            return value.strip()
+        if isinstance(value, str):  # a number written as text: a scene file's <string>, a spec, load_dict
+            try:
+                value = float(value)
+            except ValueError:
+                raise bad from None
+            value = int(value) if self.kind is int and value.is_integer() else value
+        if isinstance(value, bool):
             raise bad
         try:
             converted = self.kind(value)

@@ -40,10 +40,25 @@ def test_from_mapping_takes_only_known_names():
     ({"single_scattering": "traced", "profile_total": "model"}, "single_scattering=traced needs profile_total=exact"),
     ({"walk_depth": "automatic"}, "walk_depth='automatic' is not allowed: it must be a number >= 0, or inf or auto"),
     ({"walk_depth": -1.0}, "walk_depth=-1"),
+    ({"walk_depth": "-1"}, "walk_depth='-1'"),
+    ({"walk_depth": "nan"}, "walk_depth='nan'"),
+    ({"layers": "2.5"}, "whole number"),
 ])
 def test_bad_values_say_what_is_allowed(kwargs, message):
     with pytest.raises(ConvsssError, match=message):
         RenderParams(**kwargs)
+
+
+@pytest.mark.parametrize("text, value", [("inf", float("inf")), ("2", 2.0), ("0", 0.0), ("1e300", 1e300),
+                                         (" auto ", "auto")])
+def test_a_number_written_as_text_is_the_number(mi, text, value):
+    """Issue 62: a scene file's <string name="walk_depth" value="inf"/> (or load_dict's "inf") was refused with a
+    message naming it as allowed. The same value as a scene file's string, a load_dict entry and a keyword."""
+    scene = mi.load_string(f"""<scene version="3.0.0"><integrator type="convsss">
+        <string name="walk_depth" value="{text}"/><string name="max_depth" value="4"/></integrator></scene>""")
+    assert scene.integrator().params.walk_depth == value and scene.integrator().params.max_depth == 4
+    assert mi.load_dict({"type": "convsss", "walk_depth": text}).params.walk_depth == value
+    assert RenderParams(walk_depth=text).walk_depth == value
 
 
 def test_integrator_documents_every_parameter_from_its_declaration():

@@ -40,6 +40,11 @@ VARIANT = mi.variant()
 #: One render stage at a time in a process: an integrator's prepared state and the thread count the shading sets in
 #: Dr.Jit are shared, so a second thread waits for the first (two threads rendering one scene at once failed).
 RENDER_LOCK = threading.RLock()
+#: What :meth:`ConvsssIntegrator.render_forward` and :meth:`~ConvsssIntegrator.render_backward` say (issue 63).
+NO_DERIVATIVES = ("the convsss integrator has no derivatives yet: dr.forward/dr.backward through its render would give "
+                  "wrong gradients (Mitsuba's generic fallback differentiates every walk event, the roulette and the "
+                  "densities included), so it refuses them; mi.render with it renders images, and Mitsuba's "
+                  "prbvolpath differentiates a volumetric path tracer meanwhile")
 #: Camera paths per kernel of random walks (:meth:`ConvsssIntegrator._shade`): Ctrl-C waits for at most one.
 WALK_LANES = 1 << 20
 
@@ -220,6 +225,14 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                 session.release()  # through Mitsuba's objects is never freed (every later kernel then slows)
             elif self.params.passes > 1:  # the passes' states were their shares'
                 session.prepared, session.tracer, session.aovs = kept
+
+    def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
+        """Refused (:data:`NO_DERIVATIVES`): never a wrong gradient, never an abort."""
+        raise ConvsssError(NO_DERIVATIVES)
+
+    def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
+        """Refused (:data:`NO_DERIVATIVES`): never a wrong gradient, never an abort."""
+        raise ConvsssError(NO_DERIVATIVES)
 
     @_one_at_a_time
     def render_prepared(self, spp=0, seed=None, develop=True, evaluate=True):

@@ -338,7 +338,10 @@ class PathTracer:
     # --- the path loop ----------------------------------------------------------------------------------------------
     def shade(self, sampler, ray):
         """Radiance (mi.Color3f) and hit mask (mi.Bool) for a batch of camera rays, drawing from ``sampler``: by the
-        random walk where ``walk_depth`` > 0 (:class:`~.walk.RandomWalk`), else by the loop below."""
+        random walk where ``walk_depth`` > 0 (:class:`~.walk.RandomWalk`), else by the loop below. In a scene
+        without emitters nothing is lit: black, the first hits' mask alone (the walk's loops broke on it, issue 62)."""
+        if not self.scene.emitters():
+            return dr.zeros(mi.Color3f, dr.width(ray.o)), self.scene.ray_intersect(ray).is_valid()
         if self.walk is not None:
             return self.walk.trace(sampler, ray)
         return self._trace(sampler, ray, 0)
