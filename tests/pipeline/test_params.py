@@ -114,3 +114,11 @@ def test_a_transport_named_renders_unless_a_walk_depth_is_named_too():
     assert render_params({"transport": "volume", "walk_depth": None}, scene).walk_depth == 0.0
     assert render_params({"transport": "volume", "walk_depth": 2.0}, scene).walk_depth == 2.0
     assert render_params({"layers": 4}, scene).walk_depth == 4.0
+
+
+def test_replace_changes_what_it_names_and_checks_it():
+    p = RenderParams(walk_depth="auto", layers=4, transport="convolution")
+    q = p.replace(walk_depth=2.0)
+    assert (q.walk_depth, q.layers, q.transport) == (2.0, 4, "convolution") and p.walk_depth == "auto"
+    with pytest.raises(ConvsssError, match="layers=1"):
+        p.replace(layers=1)

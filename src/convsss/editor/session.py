@@ -126,7 +126,7 @@ class EditSession:
         if params is None:
             params = RenderParams(**(scene_parameters(scene) or {}))
         # Edits render with the transport (the random walk reads the scene's medium, not the edited material).
-        params = RenderParams(**{**params.to_dict(), "walk_depth": 0.0})
+        params = params.replace(walk_depth=0.0)
         self.integrator = self.mi.load_dict(params.integrator_dict())
         self.lock = threading.RLock()  # edits and reads from the server's threads, one at a time
         self.version = 0
@@ -275,7 +275,7 @@ class EditSession:
             if model != TABULATED:
                 per_object.update({o.name: model for o in self.objects if o.shape is self.target.shape})
             spec = ",".join([default] + [f"{k}={v}" for k, v in per_object.items()])
-            self.integrator.params = self._with(params, profile=spec)
+            self.integrator.params = params.replace(profile=spec)
             self.integrator.prepare(self.scene, self.sensor, self.seed)  # reads the material from the scene
         else:
             self.integrator.retransport([o.with_material(material, profile)
@@ -314,19 +314,13 @@ class EditSession:
             m = Material(m.sigma_s_prime, m.sigma_a, eta, m.name)
         return m
 
-    @staticmethod
-    def _with(params, **values):
-        from ..pipeline.params import RenderParams
-
-        return RenderParams(**{**params.to_dict(), **values})
-
     def _params(self, accuracy):
         p = self.integrator.params
         if accuracy is None:
             return p
         if "accuracy" not in p.transport_params():
             raise ConvsssError(f"the {p.transport} transport has no accuracy knob (the multiscale transport has)")
-        return self._with(p, accuracy=float(accuracy))
+        return p.replace(accuracy=float(accuracy))
 
     def _write_scene(self, material, eta=False):
         """The edited object's medium (``sigma_t``, ``albedo``, ``scale`` per scene unit, its phase's ``g`` kept) and

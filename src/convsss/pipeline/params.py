@@ -196,7 +196,7 @@ def resolve_walk_depth(params, objects):
     if params.walk_depth != "auto":
         return params, False
     walk = not all(obj.diffusion_holds() for obj in objects)
-    return RenderParams(**{**params.to_dict(), "walk_depth": math.inf if walk else 0.0}), walk
+    return params.replace(walk_depth=math.inf if walk else 0.0), walk
 
 
 class IgnoredParameterWarning(UserWarning):
@@ -277,6 +277,11 @@ class RenderParams:
     def from_properties(cls, props):
         """From a Mitsuba ``Properties`` (or any mapping with ``in`` and ``[]``): only the names it holds."""
         return cls(**{name: props[name] for name in cls.names() if name in props})
+
+    def replace(self, **changes):
+        """These parameters with ``changes`` (checked as at construction; a ``transport`` changed keeps the
+        ``walk_depth`` these have, unlike a transport named at construction)."""
+        return RenderParams(**{**self.to_dict(), **changes})
 
     def to_dict(self):
         """The renderer's values, the chosen transport's parameters, and any other transport option given."""

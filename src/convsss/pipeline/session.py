@@ -42,7 +42,7 @@ from .field import diffusion_field
 from .irradiance import keeps_irradiance
 from .lighting import light_samples
 from .objects import check_lights_outside, find_translucent_objects
-from .params import RenderParams, parse_aovs, reads_transports, render_parameters, resolve_walk_depth
+from .params import parse_aovs, reads_transports, render_parameters, resolve_walk_depth
 from .passes import build_transports, translucent_passes
 from .path_tracer import PathTracer
 from .plan import plan_samples
@@ -415,8 +415,7 @@ class RenderSession:
         p = self.params
         count = min(p.passes, spp)
         shares = [spp // count + (k < spp % count) for k in range(count)]
-        share_params = RenderParams(**{**p.to_dict(), "sample_density": p.sample_density / count,
-                                       "profile_samples": p.profile_samples / count})
+        share_params = p.replace(sample_density=p.sample_density / count, profile_samples=p.profile_samples / count)
         start, seconds, done, image, survey = time.perf_counter(), {}, [], None, None
         try:
             self.params = share_params
