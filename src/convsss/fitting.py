@@ -168,7 +168,7 @@ class Forward:
         _set_medium(params, medium_parameters(unreduced(drawn, g), unit_mm))
         weighed = unreduced(material, g)
         sigma_t, sigma_s = (mi.Color3f(*(c * unit_mm).tolist()) for c in (weighed.sigma_t_prime, weighed.sigma_s_prime))
-        self.integrator.session.tracer.walk.evaluated = [(mi.MediumPtr(medium), sigma_t, sigma_s)]
+        self.integrator.walk.weigh(medium, sigma_t, sigma_s)
         return np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
 
     def _transported(self, material):

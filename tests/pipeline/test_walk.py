@@ -167,7 +167,7 @@ def test_paths_drawn_by_one_medium_and_weighed_by_another_render_the_other(mi, s
             medium = next(s for s in scene.shapes() if s.interior_medium() is not None).interior_medium()
             other = convsss.material(weighed)  # isotropic, in mm: its coefficients as they are
             sigma_t, sigma_s = (mi.Color3f(*c.tolist()) for c in (other.sigma_t_prime, other.sigma_s_prime))
-            integrator.session.tracer.walk.evaluated = [(mi.MediumPtr(medium), sigma_t, sigma_s)]
+            integrator.walk.weigh(medium, sigma_t, sigma_s)
         return [np.array(integrator.render_prepared(spp=SPP, seed=s), dtype=np.float64)[..., :3] for s in (1, 2)]
 
     ours, truth = images("skin1", weighed="skin2"), images("skin2")

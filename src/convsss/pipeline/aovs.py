@@ -87,7 +87,7 @@ class FirstHitAOVs:
     def _surface(self, ray, si, which):
         """``(exitance, irradiance)`` channel lists at the hits ``si`` of ``ray`` on translucent objects.
 
-        ``M`` as the shading of the same rays had it (:meth:`~.path_tracer.PathTracer.shade`: the screen table's,
+        ``M`` as the shading of the same rays had it (:meth:`~.path_tracer.PathTracer.trace`: the screen table's,
         else what its transports gave, :attr:`~.path_tracer.PathTracer.first_recorded`); what neither knows (paths
         that end at the first hit, ``max_depth`` 1) and ``E`` are asked in numpy of each object's transport and
         samples, at the hit in mm with the outward normal."""

@@ -155,6 +155,12 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         with it; one :meth:`prepare` made is kept, and renders reuse it, until :meth:`release`)."""
         return self.session.prepared
 
+    @property
+    def walk(self):
+        """The prepared state's random walk (:class:`~.walk.RandomWalk`; :meth:`~.walk.RandomWalk.weigh` sets a fit's
+        trial material), None where the camera's paths do not walk."""
+        return None if self.session.tracer is None else self.session.tracer.walk
+
     def _announce(self, stage):
         if self.progress is not None:
             self.progress(stage)
@@ -298,7 +304,10 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             session.prepare(scene, scene.sensors()[0], 0)
         if self._nested:  # all threads for the shading, then one again for Mitsuba's film kernel (see render)
             dr.set_thread_count(self._threads)
-        radiance, valid = session.tracer.shade(sampler, ray)
+        if session.tracer.scene.emitters():
+            radiance, valid = session.tracer.strategy.trace(sampler, ray)
+        else:  # nothing is lit: black, the first hits' mask alone (the walk's loops broke on it, issue 62)
+            radiance, valid = dr.zeros(mi.Color3f, dr.width(ray.o)), scene.ray_intersect(ray).is_valid()
         aovs = session.aovs(ray)
         if self._nested:
             dr.eval(radiance, valid, aovs)

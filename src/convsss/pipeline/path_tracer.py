@@ -1,6 +1,6 @@
 """The render's path tracer: one per prepared state, the service the stages share.
 
-It shades the camera rays (:meth:`PathTracer.shade`, the shading stage, inside Mitsuba's render loop), traces the
+It shades the camera rays (:meth:`PathTracer.trace`, the shading stage, inside Mitsuba's render loop), traces the
 light that reaches the irradiance samples off the scene (:meth:`PathTracer.incident`, the indirect part of paper
 Eq. 2, before any transport exists) and looks up the hits those paths made on translucent objects once the
 transports exist (:meth:`PathTracer.resolve`, the light between translucent objects). The transports it reads ``M``
@@ -161,7 +161,7 @@ class PathTracer:
         #: With ``walk_depth`` > 0, the camera's paths walk through the objects' media (:mod:`.walk`); with
         #: ``straight``, every light but the environment reaches them straight through smooth boundaries (walk_depth
         #: auto's walks).
-        self.walk = (RandomWalk(scene, params, self.classify, self.per_emitter, straight) if params.walk_depth > 0
+        self.walk = (RandomWalk(scene, objects, params, self.per_emitter, straight) if params.walk_depth > 0
                      else None)
         self.attach([None] * len(objects))
 
@@ -336,14 +336,15 @@ class PathTracer:
         return out
 
     # --- the path loop ----------------------------------------------------------------------------------------------
-    def shade(self, sampler, ray):
-        """Radiance (mi.Color3f) and hit mask (mi.Bool) for a batch of camera rays, drawing from ``sampler``: by the
-        random walk where ``walk_depth`` > 0 (:class:`~.walk.RandomWalk`), else by the loop below. In a scene
-        without emitters nothing is lit: black, the first hits' mask alone (the walk's loops broke on it, issue 62)."""
-        if not self.scene.emitters():
-            return dr.zeros(mi.Color3f, dr.width(ray.o)), self.scene.ray_intersect(ray).is_valid()
-        if self.walk is not None:
-            return self.walk.trace(sampler, ray)
+    @property
+    def strategy(self):
+        """What shades the camera rays: the random walk where ``walk_depth`` > 0 (:class:`~.walk.RandomWalk`), else
+        this path tracer (:meth:`trace`); the integrator asks it."""
+        return self.walk if self.walk is not None else self
+
+    def trace(self, sampler, ray):
+        """Radiance (mi.Color3f) and hit mask (mi.Bool) for a batch of camera rays, drawing from ``sampler``: the
+        surface path tracer's loop (:meth:`_paths`)."""
         return self._trace(sampler, ray, 0)
 
     def incident(self, sampler, ray, weight, tags):

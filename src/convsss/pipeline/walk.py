@@ -53,6 +53,7 @@ import drjit as dr
 
 from ..backend import load_mitsuba
 from .irradiance import fresnel_transmittance, refracted_cosine
+from .shadow import classify
 
 mi = load_mitsuba()
 
@@ -106,10 +107,12 @@ def _interaction(source):
 
 
 class RandomWalk:
-    """The volumetric paths of one scene (module doc); :meth:`trace` gives their radiance."""
+    """The volumetric paths of one scene whose translucent objects are ``objects`` (module doc): a sibling of the
+    surface path tracer (:class:`~.path_tracer.PathTracer`) that the integrator picks where ``walk_depth`` > 0;
+    :meth:`trace` gives their radiance."""
 
-    def __init__(self, scene, params, classify, each_emitter=True, straight=False):
-        self.scene, self.classify = scene, classify
+    def __init__(self, scene, objects, params, each_emitter=True, straight=False):
+        self.scene, self.objects = scene, objects
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         self.rr_depth = params.rr_depth
         #: Every emitter's light but the environment's, not just a delta light's, reaches a scattering vertex
@@ -129,6 +132,15 @@ class RandomWalk:
         #: field (in some channel) and ``capped`` at :data:`MAX_WALK` events.
         self.counts = {}
         self.reset()
+
+    def classify(self, si):
+        """Per lane, the translucent object hit and its eta (:func:`.shadow.classify`)."""
+        return classify(self.objects, si)
+
+    def weigh(self, medium, sigma_t, sigma_s):
+        """Weigh the paths in ``medium`` (a Mitsuba medium) by ``sigma_t`` and ``sigma_s`` (Color3f per scene unit)
+        from now on, its own coefficients still drawing them (:attr:`evaluated`: a fit's trial material)."""
+        self.evaluated = [(mi.MediumPtr(medium), sigma_t, sigma_s)]
 
     def reset(self):
         """Start the counts (:attr:`counts`) again."""
