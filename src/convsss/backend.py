@@ -89,3 +89,21 @@ def to_numpy3(v, dtype=None):
 
     array = dr.ravel(v).numpy().reshape(-1, 3)
     return array if dtype is None else array.astype(dtype)
+
+
+#: The alignment of the numpy buffers handed to Dr.Jit (:func:`aligned`), in bytes.
+ALIGNMENT = 64
+
+
+def aligned(array, dtype):
+    """``array`` copied into a buffer aligned to :data:`ALIGNMENT` bytes. Dr.Jit reads a numpy array in place and
+    writes the buffer's alignment into the kernel that reads it, so the same kernel of another run, whose buffer
+    happened to sit elsewhere, missed the kernel cache and was compiled again (0.8 s for the shading's, issue 59)."""
+    import numpy as np
+
+    source = np.ascontiguousarray(array, dtype=dtype)
+    raw = np.empty(source.nbytes + ALIGNMENT, dtype=np.uint8)
+    offset = -raw.ctypes.data % ALIGNMENT
+    out = raw[offset:offset + source.nbytes].view(source.dtype).reshape(source.shape)
+    out[...] = source
+    return out

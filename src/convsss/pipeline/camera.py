@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba, to_numpy3
+from ..backend import aligned, load_mitsuba, to_numpy3
 from ..errors import ConvsssError
 from ..samples import ViewFrame
 from .objects import hit_indices
@@ -68,9 +68,10 @@ def pixel_centre_rays(sensor, first=0, rows=None):
     width, height = (int(n) for n in sensor.film().crop_size())
     last = height if rows is None else min(first + rows, height)
     y, x = np.mgrid[first:last, 0:width]
-    u = ((x.ravel() + 0.5) / width).astype(np.float32)
-    v = ((y.ravel() + 0.5) / height).astype(np.float32)
+    u = aligned((x.ravel() + 0.5) / width, np.float32)  # aligned: the kernel reading them then does not vary
+    v = aligned((y.ravel() + 0.5) / height, np.float32)
     rays, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(u, v), mi.Point2f(0.5, 0.5))
+    dr.eval(rays)  # once: each numpy read of what they hit would trace them again
     return rays, (x + y * width).ravel()
 
 
@@ -119,11 +120,12 @@ def first_hits(scene, sensor, frame, unit_mm, objects):
     for first in range(0, int(crop[1]), rows):
         ray, pixel = pixel_centre_rays(sensor, first, rows)
         si = scene.ray_intersect(ray)
-        hit = si.is_valid().numpy()
-        shapes, instances = (a.numpy() for a in hit_indices(mi, si))
+        hit, indices, away = si.is_valid(), hit_indices(mi, si), dr.dot(si.n, ray.d) > 0
+        dr.eval(hit, indices, si.p, si.n, away)  # one kernel, read below
+        hit, away = hit.numpy(), away.numpy()
+        shapes, instances = (a.numpy() for a in indices)
         position = to_numpy3(si.p, np.float64) * unit_mm
         normal = to_numpy3(si.n, np.float64)
-        away = (dr.dot(si.n, ray.d) > 0).numpy()
         for chunks, obj in zip(found, objects):
             mine = hit & obj.hit(shapes, instances)
             chunks.append((pixel[mine], position[mine], normal[mine], away[mine]))

@@ -304,6 +304,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             session.prepare(scene, scene.sensors()[0], 0)
         if self._nested:  # all threads for the shading, then one again for Mitsuba's film kernel (see render)
             dr.set_thread_count(self._threads)
+        # Mitsuba's camera rays hold the film's size as literals: evaluated apart, the strategy's kernel is the same
+        # at any image size (a warm kernel cache serves it).
+        dr.make_opaque(ray)
         if session.tracer.scene.emitters():
             radiance, valid = session.tracer.strategy.trace(sampler, ray)
         else:  # nothing is lit: black, the first hits' mask alone (the walk's loops broke on it, issue 62)

@@ -450,7 +450,7 @@ class PathTracer:
             contribution += sss
             asked = translucent & ~known
             slot = dr.scatter_inc(count, mi.UInt32(0), asked)
-            kept = asked & (slot < room)
+            kept = asked & (slot < dr.opaque(mi.UInt32, room))  # opaque: the kernel outlives the image's size
             first = depth == 0
             for record, value in zip(records, (which, si.p, mi.Vector3f(si.n), weight, lane, first, si.prim_index)):
                 dr.scatter(record, value, slot, kept)

@@ -23,7 +23,7 @@ import math
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import aligned, load_mitsuba
 from ..transport.multiscale import core_width
 
 mi = load_mitsuba()
@@ -101,11 +101,12 @@ class ScreenExitance:
             exitance[seen.pixel] = transport.exitance(seen.position, seen.normal * obj.orientation)
             self.queries += len(seen.pixel)
         self._matrix = mi.ProjectiveTransform4f(mi.Matrix4f(matrix)) if self.usable else None
-        self._owner = mi.Int32(owner)
-        self._position = mi.Point3f(*(mi.Float(np.ascontiguousarray(c)) for c in position.T))
-        self._normal = mi.Vector3f(*(mi.Float(np.ascontiguousarray(c)) for c in normal.T))
-        self._exitance = mi.Color3f(*(mi.Float(np.ascontiguousarray(c)) for c in exitance.T))
-        self._reach = mi.Float(reach)
+        # Aligned copies: the shading's kernel reads them, and their buffers' alignment is written into it.
+        self._owner = mi.Int32(aligned(owner, np.int32))
+        self._position = mi.Point3f(*(mi.Float(aligned(c, np.float32)) for c in position.T))
+        self._normal = mi.Vector3f(*(mi.Float(aligned(c, np.float32)) for c in normal.T))
+        self._exitance = mi.Color3f(*(mi.Float(aligned(c, np.float32)) for c in exitance.T))
+        self._reach = mi.Float(aligned(reach, np.float32))
 
     def _projection_agrees(self, matrix, visible, unit_mm):
         """Whether ``matrix`` takes every visible pixel centre's hit point back to that pixel's centre."""
@@ -129,13 +130,15 @@ class ScreenExitance:
         x, y = screen.x - 0.5, screen.y - 0.5
         x0, y0 = dr.floor(x), dr.floor(y)
         tx, ty = x - x0, y - y0
-        known &= (x0 >= 0) & (y0 >= 0) & (x0 + 1 < self.width) & (y0 + 1 < self.height)
-        base = dr.select(known, mi.Int32(x0) + mi.Int32(y0) * self.width, 0)
+        # The table's size enters the kernel as an opaque value, so that another image size compiles nothing new.
+        width, height = dr.opaque(mi.Int32, self.width), dr.opaque(mi.Int32, self.height)
+        known &= (x0 >= 0) & (y0 >= 0) & (x0 + 1 < mi.Float(width)) & (y0 + 1 < mi.Float(height))
+        base = dr.select(known, mi.Int32(x0) + mi.Int32(y0) * width, 0)
         reach = dr.gather(mi.Float, self._reach, mi.UInt32(dr.maximum(which, 0)), known)
         cos_limit = math.cos(MAX_NORMAL_ANGLE)
         value = dr.zeros(mi.Color3f, n)
         for dx, dy, w in ((0, 0, (1 - tx) * (1 - ty)), (1, 0, tx * (1 - ty)), (0, 1, (1 - tx) * ty), (1, 1, tx * ty)):
-            corner = mi.UInt32(base + dx + dy * self.width)
+            corner = mi.UInt32(base + dx + dy * width)
             known &= dr.gather(mi.Int32, self._owner, corner, known) == which
             known &= dr.squared_norm(dr.gather(mi.Point3f, self._position, corner, known) - si.p) <= reach * reach
             known &= dr.dot(dr.gather(mi.Vector3f, self._normal, corner, known), si.n) >= cos_limit

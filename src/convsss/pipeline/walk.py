@@ -212,7 +212,7 @@ class RandomWalk:
             spectral &= active_medium
             grey = active_medium & ~spectral
 
-            null_probability = dr.mean(mei.sigma_n / mei.combined_extinction)
+            null_probability = dr.sum(mei.sigma_n / mei.combined_extinction) / 3.0  # dr.mean: the width, a literal
             null = active_medium & (sampler.next_1d(active_medium) < null_probability)
             scatter = active_medium & ~null
             last_null = null
@@ -389,7 +389,7 @@ class RandomWalk:
             ray.o[active_medium] = mei.p
             si.t[active_medium] = si.t - mei.t
             with_nee = _update(with_nee, 1.0, mei.sigma_n, spectral)
-            with_uni = _update(with_uni, dr.mean(mei.sigma_n / mei.combined_extinction), mei.sigma_n, spectral)
+            with_uni = _update(with_uni, dr.sum(mei.sigma_n / mei.combined_extinction) / 3.0, mei.sigma_n, spectral)
             with_nee = _update(with_nee, 1.0, mei.sigma_n / mei.combined_extinction, grey)
             intersect = active_surface & needs_intersection
             si[intersect] = scene.ray_intersect(ray, intersect)
