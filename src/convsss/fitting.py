@@ -11,7 +11,7 @@ shared by the channels; it moves the material's ``eta`` (the light's entry and e
 BSDF's (its reflection, the highlight) together.
 
 The forward model (:class:`Forward`) is the default render's: where that walks (``walk_depth`` inf, or ``auto`` on
-an object where diffusion fails, :func:`~convsss.pipeline.params.resolve_walk_depth`, decided once by the scene's
+an object where diffusion fails, :func:`~convsss.pipeline.params.render_mode`, decided once by the scene's
 material) the random walk's, else the transport's. Each walk draws its paths by its own material (the same seed),
 and the Jacobian's renders keep those paths and only weigh them by the moved material
 (:attr:`~convsss.pipeline.walk.RandomWalk.evaluated`; without Russian roulette, whose choices would move with it),
@@ -402,7 +402,7 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     """
     from .pipeline.integrator import ConvsssIntegrator, register
     from .pipeline.objects import find_translucent_objects
-    from .pipeline.params import RenderParams, resolve_walk_depth
+    from .pipeline.params import RenderParams, render_mode
 
     mi = register()
     sensor = scene.sensors()[0]
@@ -415,8 +415,7 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     name = _object_to_fit(found, object, fit_eta)
     # The default render's forward model (module doc): walks where it walks to the end, else the transport's.
     chosen = next(o for o in found if o.name == name)
-    walking = resolve_walk_depth(asked, found)[0].walk_depth
-    walks = walking == math.inf and chosen.classes is None
+    walks = render_mode(asked, found).walk_depth == math.inf and chosen.classes is None
     integrator = mi.load_dict({"type": "convsss", **params, **({"rr_depth": NO_ROULETTE} if walks else
                                                                {"walk_depth": 0.0})})
     spp = spp or (WALK_SPP if walks else TRANSPORT_SPP)

@@ -63,6 +63,7 @@ def test_the_fluence_deep_inside_is_what_walks_from_there_find(mi, material):
     import drjit as dr
 
     import convsss
+    from convsss.pipeline.params import RenderMode
     from convsss.pipeline.walk import RandomWalk
     from convsss.scene.materials import translucent
 
@@ -79,7 +80,7 @@ def test_the_fluence_deep_inside_is_what_walks_from_there_find(mi, material):
     points = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, -3.0, 3.0], [-2.0, 3.5, -1.0]])
     depth, fluence = tracer.walk.field.fluence(0, points)
     assert np.all(depth > 5.0)
-    walk = RandomWalk(scene, tracer.objects, tracer.params)  # no field: every walk to its end
+    walk = RandomWalk(scene, tracer.objects, tracer.params, RenderMode(float("inf")))  # no field: walks to their end
     found = []
     for k, point in enumerate(points):
         sampler = mi.load_dict({"type": "independent"})

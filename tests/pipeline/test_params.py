@@ -90,17 +90,18 @@ def test_a_parameter_of_another_transport_warns_that_it_has_no_effect(mi):
 def test_walk_depth_auto_walks_where_diffusion_fails_on_some_object():
     from types import SimpleNamespace
 
-    from convsss.pipeline.params import resolve_walk_depth
+    from convsss.pipeline.params import RenderMode, render_mode
 
     holds, fails = (SimpleNamespace(diffusion_holds=lambda answer=answer: answer) for answer in (True, False))
     auto = RenderParams(walk_depth="auto", layers=4)
     assert auto.walk_depth == "auto"
-    transport, straight = resolve_walk_depth(auto, [holds, holds])
-    assert transport.walk_depth == 0.0 and not straight and transport.layers == 4
-    walks, straight = resolve_walk_depth(auto, [holds, fails])
-    assert walks.walk_depth == float("inf") and straight and walks.layers == 4
-    given = RenderParams(walk_depth=4.0)
-    assert resolve_walk_depth(given, [fails]) == (given, False)
+    assert render_mode(auto, [holds, holds]) == RenderMode(0.0, straight=False)
+    assert render_mode(auto, [holds, fails]) == RenderMode(float("inf"), straight=True)
+    # Given: as it is; walks ended in the field take every light but the environment straight, those to the end
+    # only what no path reaches (volpathmis).
+    assert render_mode(RenderParams(walk_depth=4.0), [fails]) == RenderMode(4.0, straight=True)
+    assert render_mode(RenderParams(walk_depth="inf"), [fails]) == RenderMode(float("inf"), straight=False)
+    assert render_mode(RenderParams(walk_depth=0.0), [fails]) == RenderMode(0.0, straight=False)
 
 
 def test_a_transport_named_renders_unless_a_walk_depth_is_named_too():

@@ -70,7 +70,8 @@ def test_the_plan_is_what_the_render_draws(mi):
     from convsss.pipeline.camera import first_hits
 
     seen = first_hits(scene, state.sensor, state.frame, 1.0, state.objects)
-    (plan,) = plan_samples(scene, state.sensor, state.frame, state.objects, seen, integrator.params).objects
+    (plan,) = plan_samples(scene, state.sensor, state.frame, state.objects, seen, integrator.params,
+                           integrator.session.mode).objects
     stats = integrator.stats["objects"][0]
     assert stats["samples"] == len(state.samples[0]) >= plan.samples
     assert stats["samples"] == int(np.ceil(np.sqrt(plan.samples))) ** 2  # a stratified k x k square

@@ -120,7 +120,7 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0, profile=""):
     from ..pipeline.camera import first_hits, sensor_frame
     from ..pipeline.lighting import light_samples
     from ..pipeline.objects import find_translucent_objects
-    from ..pipeline.params import RenderParams
+    from ..pipeline.params import RenderParams, render_mode
     from ..pipeline.path_tracer import PathTracer
     from ..pipeline.plan import plan_samples
     from ..samples import IrradianceSamples
@@ -135,10 +135,11 @@ def prepare_case(scene_dict, sample_density=4.0, seed=0, profile=""):
     obj = find_translucent_objects(mi, scene, params.unit_mm, params.profile, params.profile_total,
                                    params.orders)[0]
     (seen,) = first_hits(scene, sensor, frame, params.unit_mm, [obj])
-    plan = plan_samples(scene, sensor, frame, [obj], [seen], params)
+    mode = render_mode(params, [obj])
+    plan = plan_samples(scene, sensor, frame, [obj], [seen], params, mode)
     if not plan.objects:
         raise ConvsssError("the benchmark scene's object is not visible from its camera")
-    lighting = light_samples(scene, [obj], plan, params, seed, PathTracer(scene, [obj], params))
+    lighting = light_samples(scene, [obj], plan, params, seed, PathTracer(scene, [obj], params, mode))
     s, (q,) = lighting.samples[0], plan.objects
     samples = IrradianceSamples(s.position, s.area, lighting.irradiance[0], s.normal)
     width, height = (int(x) for x in sensor.film().crop_size())

@@ -128,56 +128,52 @@ def field_spacing(bounds_mm, material, walk_depth):
     return max(min(wanted, auto_spacing(material, float(np.max(size)))), finest)
 
 
-def has_field(params):
-    """Whether walks end in a field: ``0 < walk_depth < inf`` (``auto`` never: it renders with 0 or inf)."""
-    return not isinstance(params.walk_depth, str) and 0.0 < params.walk_depth < np.inf
-
-
-def field_only(params):
-    """Whether the surface samples serve the field alone: :func:`has_field` (every camera path walks, so no pixel
-    reads a transport's exitance) and no AOV asks for the transports' exitance or the samples' irradiance."""
+def field_only(params, mode):
+    """Whether the surface samples serve the field alone: walks end in it (``mode``, a
+    :class:`~.params.RenderMode`: every camera path walks, so no pixel reads a transport's exitance) and no AOV asks
+    for the transports' exitance or the samples' irradiance."""
     from .params import reads_transports
 
-    return has_field(params) and not reads_transports(params.aovs)
+    return mode.field and not reads_transports(params.aovs)
 
 
-def sample_count(obj, params):
+def sample_count(obj, params, mode):
     """The surface samples ``obj``'s field asks for (:data:`FIELD_SAMPLES_PER_CELL` per face of its cells), or None
     where the samples serve more than the field (:func:`field_only`) or the object has no field (a medium of
     classes): the transports' own rules hold there."""
-    if not field_only(params) or obj.classes is not None:
+    if not field_only(params, mode) or obj.classes is not None:
         return None
-    h = field_spacing(obj.bbox_mm, obj.material, params.walk_depth)
+    h = field_spacing(obj.bbox_mm, obj.material, mode.walk_depth)
     return max(int(math.ceil(FIELD_SAMPLES_PER_CELL * obj.area_mm2 / h**2)), 1)
 
 
-def planned_bytes(obj, params):
+def planned_bytes(obj, mode):
     """The bytes ``obj``'s field will hold (its grid's system and solver, the fluence, gradient and texture), 0
     where ``walk_depth`` makes none: for the plan's memory check, before any work."""
     from ..transport.volume.grid import BYTES_PER_NODE
 
-    if not has_field(params) or obj.classes is not None:
+    if not mode.field or obj.classes is not None:
         return 0
     lo, hi = np.asarray(obj.bbox_mm, dtype=np.float64)
-    h = field_spacing(obj.bbox_mm, obj.material, params.walk_depth)
+    h = field_spacing(obj.bbox_mm, obj.material, mode.walk_depth)
     nodes = float(np.prod(np.floor((hi - lo) / h) + 8))  # the domain's padding: z_b and two cells a side, about
     return int(nodes * (BYTES_PER_NODE + FIELD_BYTES_PER_NODE))
 
 
-def diffusion_field(objects, transports, params):
+def diffusion_field(objects, transports, mode, unit_mm):
     """The fields of ``objects`` (:class:`DiffusionField`) from their ``transports``' samples (their irradiance,
     profile and view frame); None where ``walk_depth`` is 0 or inf, or no object has a field (a heterogeneous
     interior has none: its walks go on to their end)."""
-    if not has_field(params):
+    if not mode.field:
         return None
     fields = []
     for obj, transport in zip(objects, transports):
         if transport is None or obj.classes is not None or not len(transport.samples):
             continue
-        made = _object_field(obj, transport, field_spacing(obj.bbox_mm, obj.material, params.walk_depth))
+        made = _object_field(obj, transport, field_spacing(obj.bbox_mm, obj.material, mode.walk_depth))
         if made is not None:
             fields.append(made)
-    return DiffusionField(fields, params.walk_depth, params.unit_mm) if fields else None
+    return DiffusionField(fields, mode.walk_depth, unit_mm) if fields else None
 
 
 class DiffusionField:

@@ -7,6 +7,7 @@ convolution, ``epsilon`` of the hierarchical method): every declaration has one 
 """
 
 import math
+from dataclasses import dataclass
 
 from ..errors import ConvsssError
 from ..parameters import Parameter, check_parameters
@@ -187,16 +188,49 @@ def plugin_parameters():
     return "\n".join(lines)
 
 
-def resolve_walk_depth(params, objects):
-    """``(params, straight)``: ``params`` with ``walk_depth = auto`` made a number for the translucent ``objects``: 0
-    (the transport) where diffusion holds on every one (:meth:`~.objects.TranslucentObject.diffusion_holds`), else inf;
-    ``straight`` whether the walks then take every light but the environment straight through smooth boundaries
-    (Eq. W4), which auto's do (at inf otherwise only a delta light's, so that the walk stays ``volpathmis``). Other
-    params are returned as they are."""
+@dataclass(frozen=True)
+class RenderMode:
+    """What renders the camera's paths through the translucent objects: the parameters' ``walk_depth`` resolved once,
+    by the survey, for the scene's objects (:func:`render_mode`); every stage downstream reads this value.
+
+    Attributes
+    ----------
+    walk_depth : float
+        0: the transport's exitance (paper Eq. 7); inf: walks to their end (volumetric path tracing of the objects'
+        media, ``volpathmis``'s estimator); between: walks ended in the diffusion field at that depth (Eq. W3).
+    straight : bool
+        Whether walks take every light but the environment straight through smooth boundaries (Eq. W4): walks ended
+        in the field, and ``auto``'s walks; at an explicit inf only a delta light's, so that the walk stays
+        ``volpathmis``.
+    """
+
+    walk_depth: float
+    straight: bool = False
+
+    @property
+    def walks(self):
+        """Whether the camera's paths walk through the objects' media."""
+        return self.walk_depth > 0.0
+
+    @property
+    def field(self):
+        """Whether walks end in a diffusion field (``0 < walk_depth < inf``)."""
+        return 0.0 < self.walk_depth < math.inf
+
+    def __str__(self):
+        return f"{self.walk_depth:g}"
+
+
+def render_mode(params, objects):
+    """The :class:`RenderMode` of ``params`` for the translucent ``objects``: ``walk_depth`` as given, or for
+    ``auto`` 0 (the transport) where diffusion holds on every object
+    (:meth:`~.objects.TranslucentObject.diffusion_holds`), else inf with every light but the environment straight
+    through smooth boundaries."""
     if params.walk_depth != "auto":
-        return params, False
+        depth = float(params.walk_depth)
+        return RenderMode(depth, straight=0.0 < depth < math.inf)
     walk = not all(obj.diffusion_holds() for obj in objects)
-    return params.replace(walk_depth=math.inf if walk else 0.0), walk
+    return RenderMode(math.inf if walk else 0.0, straight=walk)
 
 
 class IgnoredParameterWarning(UserWarning):

@@ -125,14 +125,13 @@ class PathTracer:
     params : RenderParams
     stop : callable, optional
         Asked between bounces; when it returns True the paths end there (Ctrl-C during Mitsuba's render).
-    straight : bool
-        Whether walks take every light but the environment straight through smooth boundaries (Eq. W4) at any
-        ``walk_depth`` (:func:`~.params.resolve_walk_depth`).
+    mode : RenderMode
+        What renders the objects (:class:`~.params.RenderMode`): walks, or this path tracer with the transports.
     shadows : Shadows, optional
         The scene's shadow rays (:class:`.shadow.Shadows`) when ``objects`` are not all its translucent objects.
     """
 
-    def __init__(self, scene, objects, params, stop=None, straight=False, shadows=None):
+    def __init__(self, scene, objects, params, mode, stop=None, shadows=None):
         self.scene, self.objects, self.params = scene, objects, params
         self.stop = stop
         #: Each object's exit gain (:class:`Leaving`), ``None`` with ``incidence`` normal (paper Eq. 7 alone).
@@ -158,11 +157,8 @@ class PathTracer:
         self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
         #: The shadow rays, through every translucent object of the scene (``shadows``, or this tracer's ``objects``).
         self.shadows = shadows or Shadows(scene, objects, params.unit_mm)
-        #: With ``walk_depth`` > 0, the camera's paths walk through the objects' media (:mod:`.walk`); with
-        #: ``straight``, every light but the environment reaches them straight through smooth boundaries (walk_depth
-        #: auto's walks).
-        self.walk = (RandomWalk(scene, objects, params, self.per_emitter, straight) if params.walk_depth > 0
-                     else None)
+        #: Where ``mode`` walks, the camera's paths walk through the objects' media (:mod:`.walk`).
+        self.walk = RandomWalk(scene, objects, params, mode, self.per_emitter) if mode.walks else None
         self.attach([None] * len(objects))
 
     def attach(self, transports, screen=None, field=None):

@@ -32,6 +32,8 @@ from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..memory import USABLE_FRACTION, available_memory, check_memory
 from ..transport.mixture import PARTS_PER_CLASS
+from .field import planned_bytes as field_bytes
+from .field import sample_count as field_sample_count
 from .irradiance import sample_count
 from .surface import has_vertices, mesh_arrays
 
@@ -102,11 +104,13 @@ class ObjectPlan:
 
 @dataclass(frozen=True)
 class SamplingPlan:
-    """What a render will draw: an :class:`ObjectPlan` per object the camera sees (in the objects' order) and the
-    names of those it does not see (skipped, with a :class:`VisibilityWarning`)."""
+    """What a render will draw: an :class:`ObjectPlan` per object the camera sees (in the objects' order), the
+    names of those it does not see (skipped, with a :class:`VisibilityWarning`), and what renders the objects (the
+    :class:`~.params.RenderMode` the plan was made for)."""
 
     objects: tuple
     hidden: tuple
+    mode: object = None
 
     def draws_like(self, other, rtol=1e-4):
         """Whether ``other`` draws what this plan draws: the same objects seen and hidden, their sample counts,
@@ -189,22 +193,7 @@ def _check_outside(obj, visible):
                            "objects seen from outside; move the camera out of it")
 
 
-def field_bytes(obj, params):
-    """The bytes of ``obj``'s diffusion field for the random walk (:func:`~.field.planned_bytes`)."""
-    from .field import planned_bytes
-
-    return planned_bytes(obj, params)
-
-
-def field_sample_count(obj, params):
-    """The surface samples of ``obj`` where they light the random walk's field alone (:func:`~.field.sample_count`),
-    else None."""
-    from .field import sample_count as field_count
-
-    return field_count(obj, params)
-
-
-def plan_object(scene, sensor, frame, obj, visible, index, params):
+def plan_object(scene, sensor, frame, obj, visible, index, params, mode):
     """The :class:`ObjectPlan` of one visible object, or a one-line error when its samples or its transport would
     not fit in memory, or its irradiance would take too long."""
     from .camera import pixel_footprint
@@ -223,7 +212,7 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
         profile_area = 1.0 / sum(f / transport.sample_area(profile, held_params)
                                  for f, profile in zip(obj.classes.shares, obj.class_profiles))
     count = wanted = sample_count(obj.area_mm2, cell, p.sample_density, profile_area, p.profile_samples)
-    for_field = field_sample_count(obj, p)
+    for_field = field_sample_count(obj, p, mode)
     if for_field is not None:  # every camera path walks: the samples light the random walk's field alone
         count = wanted = for_field
     elif count > count_pixel:
@@ -238,10 +227,10 @@ def plan_object(scene, sensor, frame, obj, visible, index, params):
     held = sum(transport.planned_bytes(bounds, profile, count, held_params, material)
                for profile, material in zip(obj.profiles, obj.materials))
     held *= PARTS_PER_CLASS if obj.classes is not None else 1  # Eq. H1: each class's transports
-    field = field_bytes(obj, p)  # the random walk's diffusion field
+    field = field_bytes(obj, mode)  # the random walk's diffusion field
     check_memory(count * BYTES_PER_SAMPLE + held + field,
                  f"{count} surface samples of {obj.name!r} ({_span(obj, p.unit_mm)}) and its {p.transport} transport"
-                 + (f" and walk_depth {p.walk_depth:g}'s field" if field else ""),
+                 + (f" and walk_depth {mode}'s field" if field else ""),
                  transport.memory_advice + (", or a larger walk_depth (a coarser field)" if field else ""))
     held += field
     check_irradiance_time(scene, count, obj.name, p)
@@ -262,10 +251,11 @@ def transport_params(params, footprint):
     return out
 
 
-def plan_samples(scene, sensor, frame, objects, seen, params):
+def plan_samples(scene, sensor, frame, objects, seen, params, mode):
     """The :class:`SamplingPlan` for ``objects`` (:class:`~convsss.pipeline.objects.TranslucentObject`) whose visible
-    points are ``seen`` (:func:`~convsss.pipeline.camera.first_hits`), under the render parameters ``params``; one-line
-    errors (camera inside an object, memory, time) before anything is drawn."""
+    points are ``seen`` (:func:`~convsss.pipeline.camera.first_hits`), under the render parameters ``params`` and
+    their :class:`~.params.RenderMode` ``mode``; one-line errors (camera inside an object, memory, time) before
+    anything is drawn."""
     plans, hidden = [], []
     for k, (obj, visible) in enumerate(zip(objects, seen)):
         _check_outside(obj, visible)
@@ -274,9 +264,9 @@ def plan_samples(scene, sensor, frame, objects, seen, params):
                           "other surfaces is not rendered)", VisibilityWarning, stacklevel=3)
             hidden.append(obj.name)
             continue
-        plans.append(plan_object(scene, sensor, frame, obj, visible, k, params))
+        plans.append(plan_object(scene, sensor, frame, obj, visible, k, params, mode))
     total = sum(q.samples * BYTES_PER_SAMPLE + q.transport_bytes for q in plans)
     if len(plans) > 1:
         check_memory(total, f"the {len(plans)} visible translucent objects' samples and transports",
                      params.transport_class().memory_advice)
-    return SamplingPlan(tuple(plans), tuple(hidden))
+    return SamplingPlan(tuple(plans), tuple(hidden), mode)

@@ -42,7 +42,7 @@ from .field import diffusion_field
 from .irradiance import keeps_irradiance
 from .lighting import light_samples
 from .objects import check_lights_outside, find_translucent_objects
-from .params import parse_aovs, reads_transports, render_parameters, resolve_walk_depth
+from .params import RenderMode, parse_aovs, reads_transports, render_mode, render_parameters
 from .passes import build_transports, translucent_passes
 from .path_tracer import PathTracer
 from .plan import plan_samples
@@ -158,8 +158,9 @@ class RenderSession:
 
     def __init__(self, params, stop, announce):
         self.params, self.stop, self.announce = params, stop, announce
-        #: What the last :meth:`prepare` renders with: ``(params, straight)`` of :func:`~.params.resolve_walk_depth`.
-        self.walking = (params, False)
+        #: What the last :meth:`prepare` renders the objects with (:class:`~.params.RenderMode`, resolved once by
+        #: :meth:`survey`; an edit's :meth:`retransport` decides it anew for its materials).
+        self.mode = RenderMode(0.0)
         self.prepared = self.tracer = self.aovs = None
         self.keep = False
         self.stats = {}
@@ -185,20 +186,19 @@ class RenderSession:
         p = self.params
         objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders,
                                            lights_inside=p.walk_depth in ("auto", math.inf))
-        walking = resolve_walk_depth(p, objects)[0]  # what the plan draws for (prepare keeps it, :attr:`walking`)
-        if p.walk_depth == "auto" and walking.walk_depth == 0.0:  # the transport after all
+        mode = render_mode(p, objects)  # resolved here, once: the plan carries it (prepare renders with it)
+        if p.walk_depth == "auto" and not mode.walks:  # the transport after all
             check_lights_outside(mi, scene, objects, p.unit_mm)
-        p = walking
         check_camera(sensor)
         frame = sensor_frame(sensor, p.unit_mm)
         seen = first_hits(scene, sensor, frame, p.unit_mm, objects)
-        return objects, frame, seen, plan_samples(scene, sensor, frame, objects, seen, p)
+        return objects, frame, seen, plan_samples(scene, sensor, frame, objects, seen, p, mode)
 
     @property
     def walks_alone(self):
         """Whether the render needs none of stages 2-5: every walk goes to its end (``walk_depth`` inf) and no AOV
         asks for the transports' exitance or the samples' irradiance."""
-        return self.walking[0].walk_depth == math.inf and not reads_transports(self.params.aovs)
+        return self.mode.walk_depth == math.inf and not reads_transports(self.params.aovs)
 
     def _attach(self, tracer, transports, screen, diffusion=None):
         """``tracer`` reads ``transports``, ``screen`` and the ``diffusion`` field from now on; the AOVs read the
@@ -215,16 +215,16 @@ class RenderSession:
         timer, stage = self._timed()
         with stage("samples"):
             objects, frame, seen, plan = survey if survey is not None else self.survey(scene, sensor)
-        p, straight = self.walking = resolve_walk_depth(self.params, objects)
+        p, mode = self.params, plan.mode
+        self.mode = mode
         shown = [objects[q.index] for q in plan.objects]
         shown_at = [seen[q.index] for q in plan.objects]
         cells = [q.pixel_footprint_mm for q in plan.objects]
         per_object = [{**obj.summary(), **q.summary(obj.area_mm2)} for obj, q in zip(shown, plan.objects)]
-        tracer = PathTracer(scene, shown, p, stop=self.stop, straight=straight,
-                            shadows=Shadows(scene, objects, p.unit_mm))
+        tracer = PathTracer(scene, shown, p, mode, stop=self.stop, shadows=Shadows(scene, objects, p.unit_mm))
         if self.walks_alone:  # the walk reaches every interior itself: no samples, irradiance or transports
             self._attach(tracer, [None] * len(shown), None)
-            self.stats = {"parameters": asked, "walk_depth": f"{p.walk_depth:g}", "seconds": dict(timer),
+            self.stats = {"parameters": asked, "walk_depth": str(mode), "seconds": dict(timer),
                           "objects": per_object, "hidden": list(plan.hidden), "samples": 0, "translucent_passes": 0,
                           "screen_exitance": {"usable": False, "queries": 0}}
             self.prepared = PreparedState(scene, sensor, as_seed(seed), frame, shown, shown_at, cells, None,
@@ -242,11 +242,11 @@ class RenderSession:
                                  flux_indirect=(total - flux_direct).tolist(),
                                  flux_from_translucent=flux_translucent.tolist())
         with stage("transport"):
-            diffusion = diffusion_field(shown, transports, p)
+            diffusion = diffusion_field(shown, transports, mode, p.unit_mm)
         with stage("screen"):
             screen = ScreenExitance(sensor, shown, shown_at, transports, p.unit_mm)
         self._attach(tracer, transports, screen, diffusion)
-        self.stats = {"parameters": asked, "walk_depth": f"{p.walk_depth:g}", "seconds": dict(timer),
+        self.stats = {"parameters": asked, "walk_depth": str(mode), "seconds": dict(timer),
                       "objects": per_object, "hidden": list(plan.hidden),
                       "samples": int(sum(o["samples"] for o in per_object)), "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}
@@ -332,19 +332,20 @@ class RenderSession:
             self.params = params
         if state.lighting is None:  # prepared for walks alone: the stages it skipped, now
             return self.reprepare(objects)
-        p, straight = self.walking = resolve_walk_depth(self.params, objects)
+        p = self.params
+        mode = self.mode = render_mode(p, objects)  # the edit's materials decide it anew
         if not all(keeps_irradiance(old.material, new.material, p.incidence, p.orders)
                    for new, old in zip(objects, state.objects)):  # the same eta: only the albedo can differ
             raise ConvsssError("retransport keeps the samples' irradiance, which weights the light by the albedo's "
                                "gain (incidence = oblique, or single scattering traced): call prepare() for a new "
                                "reduced albedo")
         timer, stage = self._timed()
-        tracer = PathTracer(state.scene, objects, p, stop=self.stop, straight=straight)
+        tracer = PathTracer(state.scene, objects, p, mode, stop=self.stop)
         transports = build_transports(state.samples, state.irradiance, objects, state.cells, state.frame, p, stage)
         transports, _, passes = translucent_passes(transports, state.lighting, tracer, p.indirect_passes, stage,
                                                    self.stop)
         with stage("transport"):
-            diffusion = diffusion_field(objects, transports, p)
+            diffusion = diffusion_field(objects, transports, mode, p.unit_mm)
         with stage("screen"):
             screen = ScreenExitance(state.sensor, objects, state.visible, transports, p.unit_mm)
         self._attach(tracer, transports, screen, diffusion)
@@ -352,7 +353,7 @@ class RenderSession:
         state.params = self.params.to_dict()
         for summary, obj in zip(self.stats.get("objects", []), objects):
             summary.update(obj.summary())
-        self.stats.update(parameters=self.params.to_dict(), walk_depth=f"{p.walk_depth:g}", seconds=dict(timer),
+        self.stats.update(parameters=self.params.to_dict(), walk_depth=str(mode), seconds=dict(timer),
                           translucent_passes=passes,
                           screen_exitance={"usable": screen.usable, "queries": screen.queries})
         return self.tracer
@@ -378,8 +379,8 @@ class RenderSession:
         for new, q in zip(objects, plan.objects):
             every[q.index] = new
         if replan:
-            plan = plan_samples(state.scene, state.sensor, frame, every, seen,
-                                resolve_walk_depth(self.params, every)[0])
+            plan = plan_samples(state.scene, state.sensor, frame, every, seen, self.params,
+                                render_mode(self.params, every))
         return self.prepare(state.scene, state.sensor, state.seed, survey=(every, frame, seen, plan))
 
     def checkpoint(self):

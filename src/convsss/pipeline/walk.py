@@ -111,15 +111,14 @@ class RandomWalk:
     surface path tracer (:class:`~.path_tracer.PathTracer`) that the integrator picks where ``walk_depth`` > 0;
     :meth:`trace` gives their radiance."""
 
-    def __init__(self, scene, objects, params, each_emitter=True, straight=False):
+    def __init__(self, scene, objects, params, mode, each_emitter=True):
         self.scene, self.objects = scene, objects
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         self.rr_depth = params.rr_depth
         #: Every emitter's light but the environment's, not just a delta light's, reaches a scattering vertex
-        #: straight through a smooth boundary (Eq. W4) where walks end in the field (``walk_depth`` finite) or with
-        #: ``straight`` (walk_depth auto's walks); at ``inf`` only what no path reaches, so that the walk stays
-        #: ``volpathmis``.
-        self.straight_through = params.walk_depth < float("inf") or straight
+        #: straight through a smooth boundary (Eq. W4) where ``mode`` says so (walks ended in the field, auto's
+        #: walks); at an explicit ``inf`` only what no path reaches, so that the walk stays ``volpathmis``.
+        self.straight_through = mode.straight
         #: The emitters each vertex samples one by one (``each_emitter``: a shadow ray each, and a shadow-ray loop
         #: each in the walk's kernel), or ``[None]``: one the scene chooses.
         self.lights = list(scene.emitters()) if each_emitter and scene.emitters() else [None]
