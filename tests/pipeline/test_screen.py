@@ -65,7 +65,7 @@ def _lookup_against_transport(mi, scene):
     integrator = scene.integrator()
     sensor = scene.sensors()[0]
     shader = integrator.prepare(scene, sensor)
-    obj, transport, screen = shader.objects[0], shader.transports[0], shader.screen
+    obj, transport, screen = shader.objects[0], shader.lookups.transports[0], shader.lookups.screen
     width, height = (int(v) for v in sensor.film().crop_size())
     rng = np.random.default_rng(3)
     u = rng.uniform(0, 1, (2, 20000)).astype(np.float32)

@@ -88,7 +88,7 @@ class FirstHitAOVs:
         """``(exitance, irradiance)`` channel lists at the hits ``si`` of ``ray`` on translucent objects.
 
         ``M`` as the shading of the same rays had it (:meth:`~.path_tracer.PathTracer.trace`: the screen table's,
-        else what its transports gave, :attr:`~.path_tracer.PathTracer.first_recorded`); what neither knows (paths
+        else what its transports gave, :attr:`~.lookups.ExitanceLookups.first_recorded`); what neither knows (paths
         that end at the first hit, ``max_depth`` 1) and ``E`` are asked in numpy of each object's transport and
         samples, at the hit in mm with the outward normal."""
         tracer = self.tracer
@@ -96,9 +96,9 @@ class FirstHitAOVs:
         exitance = dr.zeros(mi.Color3f, n)
         known = dr.zeros(mi.Bool, n)
         if "exitance" in self.names:
-            if tracer.screen is not None:
-                exitance, known = tracer.screen.lookup(si, which)
-            rays, recorded, values = tracer.first_recorded
+            if tracer.lookups.screen is not None:
+                exitance, known = tracer.lookups.screen.lookup(si, which)
+            rays, recorded, values = tracer.lookups.first_recorded
             if rays is ray and len(recorded):
                 exitance = _scatter(exitance, values, recorded)
                 dr.scatter(known, True, mi.UInt32(recorded.astype(np.uint32)))
@@ -117,7 +117,7 @@ class FirstHitAOVs:
                 outward = normals[mine].astype(np.float64) * obj.orientation
                 if "exitance" in self.names:
                     ask = mine & ~known_np
-                    exitance = _scatter(exitance, tracer.exitance(k, points[ask], outward[~known_np[mine]]),
+                    exitance = _scatter(exitance, tracer.lookups.exitance(k, points[ask], outward[~known_np[mine]]),
                                         lanes[ask])
                 if "irradiance" in self.names and np.any(mine):
                     irradiance = _scatter(irradiance, self._local(k)(points[mine], outward), lanes[mine])
@@ -125,5 +125,5 @@ class FirstHitAOVs:
 
     def _local(self, k):
         if k not in self._irradiance:
-            self._irradiance[k] = LocalIrradiance(self.tracer.transports[k].samples)
+            self._irradiance[k] = LocalIrradiance(self.tracer.lookups.transports[k].samples)
         return self._irradiance[k]

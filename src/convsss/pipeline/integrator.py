@@ -272,8 +272,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         self.stats["seconds"].update(timer)
         self.stats["film"] = {"size": [int(x) for x in film.size()], "crop_size": [int(x) for x in size],
                               "spp": int(spp_used)}
-        self.stats["transports"] = [t.stats for t in tracer.transports if t is not None]
-        self.stats["exitance_lookups"] = tracer.lookups
+        self.stats["transports"] = [t.stats for t in tracer.lookups.transports if t is not None]
+        self.stats["exitance_lookups"] = tracer.lookups.count
         if tracer.walk is not None:
             self.stats["walk"] = tracer.walk.stats
         return image

@@ -25,7 +25,7 @@ class Lighting:
     """Per planned object (in the plan's order): ``samples`` (:class:`~convsss.samples.IrradianceSamples`, with the
     direct irradiance), ``irradiance`` (N, 3) direct + indirect without the light of translucent objects, and
     ``deferred``, the indirect paths' hits on translucent objects (resolved by the path tracer once the transports
-    exist, :meth:`~convsss.pipeline.path_tracer.PathTracer.resolve`)."""
+    exist, :meth:`~convsss.pipeline.lookups.ExitanceLookups.resolve`)."""
 
     samples: list
     irradiance: list

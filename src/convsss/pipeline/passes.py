@@ -52,7 +52,7 @@ def translucent_passes(transports, lighting, tracer, passes, stage=None, stop=No
         change, tables = 0.0, {}  # the mesh tables of this pass's transports
         with stage("indirect"):
             for k, (s, records) in enumerate(zip(samples, deferred)):
-                tags, values = tracer.resolve(transports, records, tables)
+                tags, values = tracer.lookups.resolve(transports, records, tables)
                 new = np.stack([np.bincount(tags, values[:, c], minlength=len(s)) for c in range(3)], axis=1)
                 new = np.maximum(new, 0.0)
                 moved = np.abs(s.area @ new - s.area @ light[k])

@@ -1,10 +1,10 @@
 """The render's path tracer: one per prepared state, the service the stages share.
 
-It shades the camera rays (:meth:`PathTracer.trace`, the shading stage, inside Mitsuba's render loop), traces the
-light that reaches the irradiance samples off the scene (:meth:`PathTracer.incident`, the indirect part of paper
-Eq. 2, before any transport exists) and looks up the hits those paths made on translucent objects once the
-transports exist (:meth:`PathTracer.resolve`, the light between translucent objects). The transports it reads ``M``
-from are attached when they are built (:meth:`PathTracer.attach`).
+It shades the camera rays (:meth:`PathTracer.trace`, the shading stage, inside Mitsuba's render loop) and traces
+the light that reaches the irradiance samples off the scene (:meth:`PathTracer.incident`, the indirect part of paper
+Eq. 2, before any transport exists); where it reads ``M`` (the screen and mesh tables, the transports, the hits of
+paths traced before the transports existed) is :mod:`.lookups`, whose transports are attached when they are built
+(:meth:`PathTracer.attach`).
 
 A path vertex on a **translucent** object adds (paper Eq. 7)
 
@@ -54,18 +54,15 @@ roulette from ``rr_depth``, so floors, shadows and backgrounds look as in Mitsub
 a translucent object picks up its ``L_sss`` too.
 
 The path loop is one symbolic Dr.Jit loop (a single kernel for all bounces, as Mitsuba's own integrators). ``M`` is
-read inside it from the exitance at the visible pixel centres (:mod:`.screen`, built once per render) where that
-knows it; the other hits on translucent objects (silhouettes, hidden sides, grazing views) are recorded in the loop
-and looked up through numpy afterwards (any transport works, whatever it is written in), their ``beta (1/pi) F_t M``
-added to their lanes: from the object's mesh table (:mod:`.mesh_exitance`, ``M`` at the vertices of the faces hit,
-interpolated) where that knows ``M``, else from the transport.
+read inside it from the screen table where that knows it; the other hits on translucent objects are recorded in the
+loop and looked up through numpy afterwards, their ``beta (1/pi) F_t M`` added to their lanes (:mod:`.lookups`).
 
 The same path tracer gives the light that reaches a translucent object after bouncing off the scene
 (:meth:`PathTracer.incident`, the indirect part of paper Eq. 2): paths start on the object's surface as at depth 1 of a
 camera path, and the emission their first segment sees is left out (direct light is estimated on its own). An object
 whose transport is not built yet (``None``) has no ``M`` to give: a path that reaches it records the point and its
 weight, which :meth:`PathTracer.incident` returns beside the radiance, to be looked up once the transport exists
-(:meth:`PathTracer.resolve`).
+(:meth:`.lookups.ExitanceLookups.resolve`).
 """
 
 import math
@@ -76,7 +73,7 @@ import numpy as np
 from ..backend import load_mitsuba, to_numpy3
 from ..profiles.incidence import Orders, exit_normalization
 from .irradiance import Entry, fresnel_transmittance, refracted_cosine
-from .mesh_exitance import MeshExitance, usable
+from .lookups import ExitanceLookups
 from .mis import power_heuristic
 from .shadow import Shadows, classify
 from .walk import RandomWalk
@@ -91,12 +88,6 @@ THROUGH_ROULETTE = 0.1
 CROSSING_FLOOR = 1e-3
 #: Room for recorded hits (those the screen table does not know), per path; more take a second, identical trace.
 RECORD_ROOM = 1.0
-
-
-def _color(array):
-    """(K, 3) numpy -> mi.Color3f (copied, so numpy buffers may be reused)."""
-    a = np.ascontiguousarray(np.asarray(array, dtype=np.float32).T)
-    return mi.Color3f(mi.Float(a[0].copy()), mi.Float(a[1].copy()), mi.Float(a[2].copy()))
 
 
 class Leaving:
@@ -149,35 +140,23 @@ class PathTracer:
         self.ctx_reflect.type_mask = int(mi.BSDFFlags.Reflection)
         self.ctx_transmit = mi.BSDFContext()
         self.ctx_transmit.type_mask = int(mi.BSDFFlags.Transmission)
-        #: During :meth:`incident`, its hits on objects without a transport: ``(object, tag, points_mm, normals,
-        #: faces, weight)`` per batch (returned by it; None otherwise).
-        self._deferred = None
-        self._tags = self._weight = None
         #: Up to this many emitters, direct light samples each of them (else one chosen by the scene).
         self.per_emitter = len(scene.emitters()) <= MAX_EMITTERS_SUMMED
         #: The shadow rays, through every translucent object of the scene (``shadows``, or this tracer's ``objects``).
         self.shadows = shadows or Shadows(scene, objects, params.unit_mm)
         #: Where ``mode`` walks, the camera's paths walk through the objects' media (:mod:`.walk`).
         self.walk = RandomWalk(scene, objects, params, mode, self.per_emitter) if mode.walks else None
+        #: Where the paths read ``M``: the screen table, the mesh tables and the transports (:mod:`.lookups`).
+        self.lookups = ExitanceLookups(objects, params.unit_mm, stop)
         self.attach([None] * len(objects))
 
     def attach(self, transports, screen=None, field=None):
-        """Read ``M`` from ``transports`` from now on: one per object (``exitance(points_mm) -> (K, 3)``), or
-        ``None`` for an object whose transport is not built yet (the hits of :meth:`incident` on it are returned, to
-        be resolved later); ``screen`` (:class:`~.screen.ScreenExitance`, optional): the objects' exitance at the
-        pixel centres they are seen at, read instead of asking the transports where it is known; ``field``
-        (:class:`~.field.DiffusionField`, optional): where the random walk ends. Counts and tables of earlier
-        transports are dropped."""
-        self.transports, self.screen = list(transports), screen
+        """Read ``M`` from ``transports`` (one per object, None where not built yet: :meth:`incident` returns its
+        hits) and the ``screen`` table from now on (:meth:`.lookups.ExitanceLookups.attach`); the walk ends in the
+        ``field`` (:class:`~.field.DiffusionField`, optional)."""
+        self.lookups.attach(transports, screen)
         if self.walk is not None:
             self.walk.field = field
-        #: Transport queries since :meth:`attach` (the stats' ``exitance_lookups``).
-        self.lookups = 0
-        #: The mesh tables of :attr:`transports`, by object (:meth:`_hit_exitance`).
-        self._tables = {}
-        #: The last batch of camera rays and their first hits whose ``M`` came from a transport: ``(rays, lanes,
-        #: M (K, 3))``, numpy but the rays (the ``exitance`` AOV reads them instead of asking again, :mod:`.aovs`).
-        self.first_recorded = (None, np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
         return self
 
     # --- per-bounce pieces ----------------------------------------------------------------------------------------
@@ -195,50 +174,6 @@ class PathTracer:
             if leaving is not None:
                 gain = dr.select(which == k, leaving(cos), gain)
         return gain * fresnel_transmittance(eta, cos) / dr.pi
-
-    def resolve(self, transports, deferred, tables=None):
-        """The radiance of the hits ``deferred`` (as :meth:`incident` returned them) now that ``transports`` exist:
-        ``(tags, values (K, 3))``, each hit's ``weight (1/pi) F_t M`` (paper Eq. 7) with its tag, hits of objects
-        whose transport is still ``None`` left out. ``tables`` (a dict, filled here) holds the mesh tables of these
-        ``transports`` for the next call on the same ones."""
-        tables = {} if tables is None else tables
-        tags, values = [np.zeros(0, dtype=np.int64)], [np.zeros((0, 3))]
-        for k, tag, points, normals, faces, weight in deferred:
-            if transports[k] is None:
-                continue
-            tags.append(tag)
-            values.append(weight * self._hit_exitance(k, transports[k], points, normals, faces, tables))
-        return np.concatenate(tags), np.concatenate(values)
-
-    def exitance(self, k, points, normals):
-        """Object ``k``'s ``M`` (K, 3) at ``points`` (mm) with outward ``normals``, from its transport (numpy)."""
-        return self._exitance(self.transports[k], points, normals)
-
-    def _hit_exitance(self, k, transport, points, normals, faces, tables):
-        """Object ``k``'s ``M`` (K, 3) at path hits ``points`` (mm) with outward ``normals`` on its shape's ``faces``:
-        from its mesh table of ``transport`` (:class:`~.mesh_exitance.MeshExitance`, Eq. V2 where the mesh resolves
-        ``M``; kept in ``tables[k]``, None where the object can have none) when it can have one, else
-        ``transport``'s."""
-        if k not in tables:
-            tables[k] = MeshExitance(self.objects[k], lambda p, n: self._exitance(transport, p, n),
-                                     self.params.unit_mm) if usable(self.objects[k]) else None
-        if tables[k] is None:
-            return self._exitance(transport, points, normals)
-        out = tables[k](faces, points, normals)
-        if self.stop is not None and self.stop():  # the table may hold zeros where it was not asked: not kept
-            tables.pop(k)
-        return out
-
-    def _exitance(self, transport, points, normals):
-        """``transport``'s ``M`` at ``points`` (mm; (K, 3) numpy), asked in chunks of its ``query_batch``; chunks
-        left when :attr:`stop` says so stay 0."""
-        out = np.zeros((len(points), 3))
-        for chunk in np.array_split(np.arange(len(points)), max(1, -(-len(points) // transport.query_batch))):
-            if len(chunk) == 0 or (self.stop is not None and self.stop()):
-                continue
-            out[chunk] = transport.exitance(points[chunk], normals[chunk])
-            self.lookups += len(chunk)
-        return out
 
     def _phong(self, si, ray_d, eta, ds, light):
         """The paper's Phong highlight from one emitter sample: ``F_r (e+2)/(2 pi) cos^e(alpha) cos_l L/pdf``."""
@@ -350,7 +285,7 @@ class PathTracer:
         The rays leave a translucent object's surface, so their first hit is at depth 1 of a camera path (``max_depth``
         and ``rr_depth`` count as for the camera's paths); emission seen at that hit is left out (it is direct light).
         Hits on objects without a transport are returned in ``deferred`` with their lane's ``tags`` and ``weight``
-        (:meth:`resolve` looks them up once the transports exist).
+        (:meth:`.lookups.ExitanceLookups.resolve` looks them up once the transports exist).
 
         Parameters
         ----------
@@ -370,20 +305,18 @@ class PathTracer:
         deferred : list
             ``(object, tags, points_mm, normals, faces, weight)`` per object and batch reached without a transport.
         """
-        self._tags, self._weight = np.asarray(tags), np.asarray(weight, dtype=np.float64)
-        self._deferred = deferred = []
-        try:
-            radiance, _ = self._trace(sampler, ray, 1)
-            return to_numpy3(radiance, np.float64) * self._weight, deferred
-        finally:
-            self._tags = self._weight = self._deferred = None
+        weight, deferred = np.asarray(weight, dtype=np.float64), []
+        radiance, _ = self._trace(sampler, ray, 1, (deferred, np.asarray(tags), weight))
+        return to_numpy3(radiance, np.float64) * weight, deferred
 
-    def _trace(self, sampler, ray, first_depth):
+    def _trace(self, sampler, ray, first_depth, incident=None):
         """The paths from ``first_depth`` (0: camera rays; 1: rays leaving a translucent surface, whose first hit's
-        emission is left out): radiance and the first hit's mask.
+        emission is left out; ``incident``: :meth:`incident`'s deferred hits, tags and weights): radiance and the first
+        hit's mask.
 
         One symbolic Dr.Jit loop (:meth:`_paths`) traces every bounce; the hits whose ``M`` the screen table does not
-        know are recorded there and asked of the transports afterwards (:meth:`_recorded`). Should more hits need
+        know are recorded there and asked of the transports afterwards (:meth:`.lookups.ExitanceLookups.add_recorded`).
+        Should more hits need
         recording than there is room for, the paths are traced again from a copy of the sampler taken before (the
         same paths) with room for all of them.
         """
@@ -394,9 +327,9 @@ class PathTracer:
             if count <= room:
                 break
             sampler, room = replay, count
-        first = self._recorded(total, records, count)
+        first = self.lookups.add_recorded(total, records, count, incident)
         if first_depth == 0:
-            self.first_recorded = (ray, *first)
+            self.lookups.first_recorded = (ray, *first)
         dr.eval(total, valid)
         return total, valid
 
@@ -442,7 +375,7 @@ class PathTracer:
             alive &= ~interior
             translucent = alive & (which >= 0)
             weight = throughput * self._leaving(which, eta, si.wi.z)  # times M: paper Eq. 7 (or O4)
-            known, sss = self._screen_exitance(si, which, translucent, weight)
+            known, sss = self.lookups.on_screen(si, which, translucent, weight)
             contribution += sss
             asked = translucent & ~known
             slot = dr.scatter_inc(count, mi.UInt32(0), asked)
@@ -491,14 +424,6 @@ class PathTracer:
             depth += 1
         dr.eval(total, valid, count)
         return total, valid, records, int(count.numpy()[0])
-
-    def _screen_exitance(self, si, which, translucent, weight):
-        """Where the screen table knows ``M`` on the ``translucent`` lanes: ``(known, weight M)`` (Eq. V1)."""
-        if self.screen is None:
-            return dr.zeros(mi.Bool, dr.width(si.p)), dr.zeros(mi.Color3f, dr.width(si.p))
-        exitance, known = self.screen.lookup(si, which)
-        known &= translucent
-        return known, dr.select(known, weight * exitance, 0.0)
 
     def _bounce(self, si, bsdf, which, eta, u_lobe, u_dir, u_through, opaque, translucent, leaving):
         """The next direction: ``(sample, weight, continues, entering, exiting)``.
@@ -557,43 +482,6 @@ class PathTracer:
         for k, extinction in enumerate(self.sampling if sampling else [e for e, _ in self.coefficients]):
             out = dr.select(which == k, extinction, out)
         return out
-
-    def _recorded(self, total, records, count):
-        """Adds to ``total`` the recorded hits' ``weight M`` from each object's transport (numpy, positions in mm,
-        outward normals for the transports that use them); hits on an object without a transport go to
-        :meth:`incident`'s deferred hits with their lane's tag and weight. Returns the lanes and ``M`` (numpy) of
-        the hits that were the first of a camera ray."""
-        if count == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
-        written = dr.arange(mi.UInt32, count)
-        owner, points, normals, beta, lanes, first, faces = (dr.gather(type(r), r, written).numpy().T
-                                                             for r in records)
-        # The loop's threads record in any order; a path records its own hits in order: sorted by lane, the
-        # transports are asked the same points in the same order whatever the threads (and neighbouring pixels' hits
-        # together).
-        order = np.argsort(lanes, kind="stable")
-        owner, lanes, first, faces = owner[order], lanes[order], first[order], faces[order]
-        points = points.reshape(-1, 3)[order].astype(np.float64) * self.params.unit_mm
-        normals = normals.reshape(-1, 3)[order].astype(np.float64)
-        beta = beta.reshape(-1, 3)[order].astype(np.float64)
-        exitance = np.zeros((count, 3))
-        for k, (obj, transport) in enumerate(zip(self.objects, self.transports)):
-            mine = np.flatnonzero(owner == k)
-            if len(mine) == 0:
-                continue
-            if transport is None:
-                tag = lanes[mine]
-                self._deferred.append((k, self._tags[tag], points[mine], normals[mine] * obj.orientation, faces[mine],
-                                      beta[mine] * self._weight[tag]))
-                continue
-            exitance[mine] = self._hit_exitance(k, transport, points[mine], normals[mine] * obj.orientation,
-                                                faces[mine], self._tables)
-        # A lane's hits summed here, in their order, then one add per lane: a scatter-add of each hit would add a
-        # lane's hits in the order the threads run, and the image would change in its last bits from run to run.
-        lane, start = np.unique(lanes, return_index=True)
-        summed = np.add.reduceat(beta * exitance, start, axis=0)
-        dr.scatter_add(total, _color(summed), mi.UInt32(lane.astype(np.uint32)))
-        return lanes[first].astype(np.int64), exitance[first]
 
     def _emission(self, si, prev_p, prev_n, prev_pdf, prev_delta):
         """Emitted radiance seen at ``si``, MIS-weighted against emitter sampling after a non-delta BSDF sample (a
