@@ -17,14 +17,11 @@
 - :mod:`.integrator`: the ``convsss`` Mitsuba plugin over the session, :func:`register` and :func:`render`;
 - :mod:`.reference`: the same scene with Mitsuba's ``volpathmis``, in passes.
 
-Only :mod:`.params` is imported here; the others load Mitsuba when imported.
+Only :mod:`.params` and :mod:`.stages` are imported here; the others load Mitsuba when imported.
 """
 
 from .params import RenderParams
-
-#: The render's stages, in the order they run (:mod:`.session` says what each does): the keys of the stats'
-#: ``seconds``, of the progress display and of the benchmarks' tables, numbered 1-6 in that order everywhere.
-STAGES = ("samples", "irradiance", "indirect", "transport", "screen", "shading")
+from .stages import STAGES
 
 __all__ = ["STAGES", "RenderParams", "register", "render"]
 

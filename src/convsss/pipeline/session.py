@@ -35,7 +35,6 @@ from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..fresnel import same_eta
 from ..timing import StageTimer
-from . import STAGES
 from .aovs import FirstHitAOVs
 from .camera import check_camera, first_hits, sensor_frame
 from .field import diffusion_field
@@ -48,6 +47,7 @@ from .path_tracer import PathTracer
 from .plan import plan_samples
 from .screen import ScreenExitance
 from .shadow import Shadows
+from .stages import STAGES
 
 mi = load_mitsuba()
 
