@@ -18,6 +18,7 @@ import numpy as np
 
 from .errors import ConvsssError
 from .files import check_outputs, json_ready, output_paths, text_writer, write_files
+from .pipeline.seeds import samples_per_pixel
 from .scene.quick import SPP
 
 
@@ -50,7 +51,7 @@ def exposure_anchor(exposure_from, tonemap):
 
 def _spp(spp, source, camera):
     """The samples per pixel asked for, else the quick scene's, else the scene's sampler's."""
-    return spp if spp is not None else (SPP if source.quick else camera.sampler().sample_count())
+    return spp if spp is not None else (SPP if source.quick else samples_per_pixel(0, camera))
 
 
 def render_to_files(source, output, *, spp=None, sensor=None, seed=0, mask=False, tonemap="reinhard", key=0.18,

@@ -27,6 +27,7 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material, OpticallyThinWarning, catalog
 from ..materials import material as preset_material
+from ..pipeline.seeds import samples_per_pixel
 from ..profiles import ScaledProfile, TabulatedProfile, material_from_color
 from ..profiles.models import (
     PROFILE_MODELS,
@@ -122,7 +123,7 @@ class EditSession:
         self.mi = register()
         self.scene, self.seed = scene, int(seed)
         self.sensor = scene.sensors()[0] if sensor is None else sensor
-        self.spp = int(spp) if spp else int(self.sensor.sampler().sample_count())
+        self.spp = samples_per_pixel(spp, self.sensor)
         if params is None:
             params = RenderParams(**(scene_parameters(scene) or {}))
         # Edits render with the transport (the random walk reads the scene's medium, not the edited material).

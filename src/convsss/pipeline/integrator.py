@@ -30,7 +30,8 @@ from .params import (
     plugin_parameters,
 )
 from .plan import check_film
-from .session import RenderSession, as_seed, pass_seed
+from .seeds import as_seed, pass_seed, samples_per_pixel, shares
+from .session import RenderSession
 
 mi = load_mitsuba()
 #: The variant this module's classes were built in (a Mitsuba class belongs to one variant).
@@ -211,7 +212,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             sensor = scene.sensors()[sensor]
         film = sensor.film()
         size = film.crop_size()
-        spp_used = spp if spp else sensor.sampler().sample_count()
+        spp_used = samples_per_pixel(spp, sensor)
         per_pass = min(spp_used, self.samples_per_pass) if self.samples_per_pass > 0 else spp_used
         check_film(size[0], size[1], per_pass, len(self.aov_names()))
         if self.params.passes > 1 and not develop:
@@ -252,7 +253,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         seed = state.seed if seed is None else seed
         film = sensor.film()
         size = film.crop_size()
-        spp_used = spp if spp else sensor.sampler().sample_count()
+        spp_used = samples_per_pixel(spp, sensor)
         self._announce("shading")
         timer = StageTimer(sync=dr.sync_thread)
         if tracer.walk is not None:
@@ -280,7 +281,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
 
     def _shade(self, scene, sensor, seed, spp, develop, evaluate, walks):
         """Mitsuba's render loop over the camera rays; with random ``walks`` (one kernel each, as long as its
-        longest walk) in chunks of about :data:`WALK_LANES` paths, each of its own seed (:func:`~.session.pass_seed`)
+        longest walk) in chunks of about :data:`WALK_LANES` paths, each of its own seed (:func:`~.seeds.pass_seed`)
         so that Ctrl-C stops between them: the image is their mean."""
         chunk = max(1, WALK_LANES // math.prod(sensor.film().crop_size())) if walks and develop else spp
         if chunk >= spp:
@@ -288,10 +289,10 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             dr.eval(image)
             return image
         total, done = None, 0
-        while done < spp and not self.should_stop():
-            share = min(chunk, spp - done)
-            part = mi.SamplingIntegrator.render(self, scene, sensor, pass_seed(seed, done // chunk), share, develop,
-                                                evaluate)
+        for k, share in enumerate(shares(spp, most=chunk)):
+            if self.should_stop():
+                break
+            part = mi.SamplingIntegrator.render(self, scene, sensor, pass_seed(seed, k), share, develop, evaluate)
             total = part * share if total is None else total + part * share
             dr.eval(total)
             done += share

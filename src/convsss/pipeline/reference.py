@@ -10,7 +10,6 @@ tracer, so such a scene renders black here; use a ``null`` boundary with point l
 pass that is black over every pixel where the camera sees a translucent object raises a :class:`BlackPassWarning`.
 """
 
-import math
 import warnings
 
 import drjit as dr
@@ -19,6 +18,7 @@ import numpy as np
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..signals import mitsuba_render
+from .seeds import pass_seed, shares
 
 #: Russian roulette starts at this depth, i.e. never in practice.
 NO_RUSSIAN_ROULETTE = 1 << 30
@@ -72,9 +72,9 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None, sensor=0):
     pass_spp : int
         Samples per pixel of each pass (the last one may have fewer).
     seed : int
-        Pass ``k`` uses the seed ``(seed * 1_000_003 + k) mod 2^32`` (Mitsuba's seeds are 32-bit): the same seed
-        gives the same image up to the order in which Mitsuba's threads add samples into the film (about 1e-7
-        relative).
+        Pass ``k`` uses the seed :func:`~.seeds.pass_seed` ``(seed, k)``, as the passes of a ``convsss`` render: the
+        same seed gives the same image up to the order in which Mitsuba's threads add samples into the film (about
+        1e-7 relative).
     on_pass : callable, optional
         ``on_pass(mean_image, spp_done, pass_index, n_passes)`` after each pass (e.g. to save it).
     sensor : int or mitsuba.Sensor
@@ -96,14 +96,14 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None, sensor=0):
         raise ConvsssError(f"spp={spp} and pass_spp={pass_spp} are not allowed: both must be >= 1")
     mi = load_mitsuba()
     integrator = reference_integrator()
-    n_passes = math.ceil(spp / pass_spp)
+    parts = shares(spp, most=pass_spp)
+    n_passes = len(parts)
     objects = translucent_pixels(scene, sensor)
     total, weight, done, warned, broken = None, None, 0, False, 0
-    for k in range(n_passes):
-        this = min(pass_spp, spp - done)
+    for k, this in enumerate(parts):
         with mitsuba_render(integrator):  # Ctrl-C: no partial pass is averaged in
             image = np.array(mi.render(scene, sensor=sensor, integrator=integrator, spp=this,
-                                       seed=(seed * 1_000_003 + k) % 2**32), dtype=np.float64)[..., :3]
+                                       seed=pass_seed(seed, k)), dtype=np.float64)[..., :3]
         if not warned and objects.any() and not np.any(image[objects] > 0):
             warned = True
             warnings.warn(f"volpathmis pass {k + 1} of {n_passes} is black over all {int(objects.sum())} pixels "

@@ -46,23 +46,11 @@ from .passes import build_transports, translucent_passes
 from .path_tracer import PathTracer
 from .plan import plan_samples
 from .screen import ScreenExitance
+from .seeds import as_seed, pass_seed, shares
 from .shadow import Shadows
 from .stages import STAGES
 
 mi = load_mitsuba()
-
-def as_seed(seed):
-    """A seed as a Python int (Mitsuba hands a one-lane ``UInt32`` to a plugin's ``render``)."""
-    return int(np.asarray(seed, dtype=np.uint64).reshape(-1)[0]) if not isinstance(seed, int) else seed
-
-
-def pass_seed(seed, k):
-    """The seed of pass ``k`` of a render of ``seed``: ``seed`` itself for the first (one pass renders as before),
-    then a 32-bit hash of both, so that passes draw independent samples and camera rays."""
-    if k == 0:
-        return seed
-    return int.from_bytes(hashlib.blake2b(f"{seed}:{k}".encode(), digest_size=4).digest(), "little")
-
 
 def _digest(params):
     """A digest of a Mitsuba object's traversed parameters (``mi.traverse``): their names and values."""
@@ -414,13 +402,13 @@ class RenderSession:
         ``time_limit``. :attr:`stats` sums the stages' seconds and lists the passes; its ``objects`` are the last
         pass's."""
         p = self.params
-        count = min(p.passes, spp)
-        shares = [spp // count + (k < spp % count) for k in range(count)]
+        parts = shares(spp, parts=p.passes)
+        count = len(parts)
         share_params = p.replace(sample_density=p.sample_density / count, profile_samples=p.profile_samples / count)
         start, seconds, done, image, survey = time.perf_counter(), {}, [], None, None
         try:
             self.params = share_params
-            for k, share in enumerate(shares):
+            for k, share in enumerate(parts):
                 self.announce(f"pass {k + 1}/{count}")
                 pass_start, own_seed = time.perf_counter(), pass_seed(seed, k)
                 self.prepare(scene, sensor, own_seed, survey)
