@@ -13,12 +13,12 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
       w_i = f_i / mean_j p_j,                                                                           (Eq. W1)
 
   ``f_i`` the path's contribution in channel ``i`` and ``p_j`` its density had channel ``j`` drawn it (the one-sample
-  balance heuristic over channels), tracked as the ratios ``p_j / f_i`` (:func:`_update`, a 3 x 3 matrix per lane);
+  balance heuristic over channels), tracked as the ratios ``p_j / f_i`` (a 3 x 3 matrix per lane: :mod:`.spectral_mis`);
 * at a scattering vertex, **next-event estimation** to every emitter of the scene (one sample each; past
   :data:`~.path_tracer.MAX_EMITTERS_SUMMED` emitters, to one the scene chooses) through null boundaries and the
   media between, combined with **phase-function sampling** by the balance heuristic on the same ratios
-  (:func:`_mis`, Eq. W2: a hit on an emitter weighs with that emitter's own density then, its choice's probability
-  included otherwise); a dielectric boundary stops the shadow ray (the light there comes by the sampled directions,
+  (Eq. W2: a hit on an emitter weighs with that emitter's own density then, its choice's probability included
+  otherwise); a dielectric boundary stops the shadow ray (the light there comes by the sampled directions,
   as in ``volpathmis``);
 * at a boundary, the scene's BSDF: a smooth or rough dielectric refracts out or reflects back in, a null one lets
   the path through into the next medium;
@@ -49,53 +49,19 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   and at most :data:`MAX_WALK` scattering events inside media.
 """
 
+from dataclasses import dataclass
+
 import drjit as dr
 
 from ..backend import load_mitsuba
 from .irradiance import fresnel_transmittance, refracted_cosine
 from .shadow import classify
+from .spectral_mis import ended, mis, ones, update, where
 
 mi = load_mitsuba()
 
 #: The most scattering events a path makes inside media (the walk's cap; a path past it ends there).
 MAX_WALK = 100_000
-
-
-def _ones(n):
-    return tuple(dr.full(mi.Color3f, 1.0, n) for _ in range(3))
-
-
-def _update(ratios, p, f, active):
-    """The path-density ratios ``p_j / f_i`` (three Color3f: row ``i``, column ``j``) times this event's ``p / f``
-    (Eq. W1), where ``active``; a ratio that is not finite counts as 0."""
-    out = []
-    for i in range(3):
-        ratio = mi.Color3f(p) / mi.Color3f(f)[i]
-        ratio = dr.select(dr.isfinite(ratio), ratio, 0.0) * ratios[i]
-        out.append(dr.select(active, dr.select(dr.isnan(ratio), 0.0, ratio), ratios[i]))
-    return tuple(out)
-
-
-def _where(mask, ratios, others):
-    """``ratios`` where ``mask``, else ``others``."""
-    return tuple(dr.select(mask, ratios[i], others[i]) for i in range(3))
-
-
-def _ended(ratios, ends):
-    """The ratios with the rows of the channels that ``ends`` (Color3f, 1 or 0) set to 0: their weight is 0 on."""
-    return tuple(dr.select(ends[i] > 0.0, 0.0, ratios[i]) for i in range(3))
-
-
-def _mis(ratios, others=None):
-    """The path's weight per channel from its ratios (Eq. W1: ``3 / sum_j p_j / f_i``); with ``others`` (the same
-    path's ratios under another technique), its balance-heuristic weight between the two (Eq. W2:
-    ``3 / sum_j (p_j + p'_j) / f_i``)."""
-    weight = []
-    for i in range(3):
-        row = ratios[i] if others is None else ratios[i] + others[i]
-        total = dr.sum(row)
-        weight.append(dr.select(total == 0.0, 0.0, 3.0 / total))
-    return mi.Color3f(*weight)
 
 
 def _interaction(source):
@@ -104,6 +70,68 @@ def _interaction(source):
     it.t, it.time, it.wavelengths, it.p = source.t, source.time, source.wavelengths, source.p
     it.n = source.n if isinstance(source, mi.SurfaceInteraction3f) else dr.zeros(mi.Normal3f, dr.width(source.p))
     return it
+
+
+@dataclass
+class _Path:
+    """The state of a batch of walks between events (the loop's variables, a Dr.Jit PyTree): the ray and the medium
+    it is in, the last surface hit, the last scattering vertex, the hero channel, the radiance found, the density
+    ratios of Eq. W1 (as drawn, and as light sampling would have drawn the last vertex's light), the product of the
+    boundaries' eta, and the flags and counts the steps read."""
+
+    ray: object
+    medium: object
+    si: object
+    last_scatter: object
+    channel: object
+    result: object
+    ratios: tuple
+    ratios_nee: tuple
+    eta: object
+    last_null: object
+    needs_intersection: object
+    specular_chain: object
+    after_scatter: object  # the last event was a scattering in a medium
+    straight_out: object  # and then the path refracted out through a smooth boundary
+    valid: object
+    depth: object  # bounces on opaque surfaces
+    events: object  # scattering events in media, reflections and refractions at their boundaries
+    scatterings: object
+    ended: object
+    active: object
+
+    @staticmethod
+    def start(sampler, ray, medium):
+        """Walks along ``ray`` from ``medium`` (None: from outside every medium), the hero channel drawn."""
+        n = dr.width(ray)
+        start = dr.zeros(mi.MediumPtr, n) if medium is None else dr.full(mi.MediumPtr, medium, n)
+        return _Path(ray=mi.Ray3f(ray), medium=mi.MediumPtr(start), si=dr.zeros(mi.SurfaceInteraction3f, n),
+                     last_scatter=dr.zeros(mi.Interaction3f, n),
+                     channel=dr.minimum(mi.UInt32(sampler.next_1d() * 3.0), 2), result=dr.zeros(mi.Color3f, n),
+                     ratios=ones(n), ratios_nee=ones(n), eta=dr.full(mi.Float, 1.0, n),
+                     last_null=dr.full(mi.Bool, False, n), needs_intersection=dr.full(mi.Bool, True, n),
+                     specular_chain=dr.full(mi.Bool, True, n), after_scatter=dr.full(mi.Bool, False, n),
+                     straight_out=dr.full(mi.Bool, False, n), valid=dr.full(mi.Bool, False, n),
+                     depth=dr.zeros(mi.UInt32, n), events=dr.zeros(mi.UInt32, n), scatterings=dr.zeros(mi.UInt32, n),
+                     ended=dr.full(mi.Bool, False, n), active=dr.full(mi.Bool, True, n))
+
+
+@dataclass
+class _Shadow:
+    """The state of a batch of the walk's shadow rays (a Dr.Jit PyTree): the ray, the distance to the light and the
+    distance covered, the medium it is in, the last surface hit, where it crossed a boundary by Eq. W4, and the
+    density ratios as light sampling drew the light and as the path's own sampling would have."""
+
+    ray: object
+    max_dist: object
+    medium: object
+    total: object
+    si: object
+    needs_intersection: object
+    crossed: object
+    with_nee: tuple
+    with_uni: tuple
+    active: object
 
 
 class RandomWalk:
@@ -156,155 +184,158 @@ class RandomWalk:
     @dr.syntax
     def trace(self, sampler, ray, medium=None):
         """Radiance (mi.Color3f) and first-hit mask (mi.Bool) of rays ``ray`` (camera rays, or rays from points in
-        ``medium``, a Mitsuba medium they start in), drawing from ``sampler``."""
-        scene = self.scene
-        n = dr.width(ray)
-        ray = mi.Ray3f(ray)
-        start = dr.zeros(mi.MediumPtr, n) if medium is None else dr.full(mi.MediumPtr, medium, n)
-        channel = dr.minimum(mi.UInt32(sampler.next_1d() * 3.0), 2)
-        result = dr.zeros(mi.Color3f, n)
-        ratios, ratios_nee = _ones(n), _ones(n)
-        eta = dr.full(mi.Float, 1.0, n)
-        medium = mi.MediumPtr(start)
-        si = dr.zeros(mi.SurfaceInteraction3f, n)
-        last_scatter = dr.zeros(mi.Interaction3f, n)
-        last_null = dr.full(mi.Bool, False, n)
-        needs_intersection = dr.full(mi.Bool, True, n)
-        specular_chain = dr.full(mi.Bool, True, n)
-        after_scatter = dr.full(mi.Bool, False, n)  # the last event was a scattering in a medium
-        straight_out = dr.full(mi.Bool, False, n)  # and then the path refracted out through a smooth boundary
-        valid = dr.full(mi.Bool, False, n)
-        depth = dr.zeros(mi.UInt32, n)  # bounces on opaque surfaces
-        events = dr.zeros(mi.UInt32, n)  # scattering events in media, reflections and refractions at their boundaries
-        scatterings = dr.zeros(mi.UInt32, n)
-        ended = dr.full(mi.Bool, False, n)
-        active = dr.full(mi.Bool, True, n)
-        while active:
-            # Russian roulette on the path's weight, the odds the weight itself (eta^2: radiance's scaling across a
-            # boundary), so that a path of weight ~1 is never cut (at albedo ~1 the cut paths' rare heavy weights
-            # would be fireflies).
-            q = dr.minimum(dr.max(_mis(ratios)) * dr.square(eta), 1.0)
-            roulette = active & ~last_null & (depth + events > self.rr_depth)
-            active &= ~(roulette & (sampler.next_1d(active) >= q))
-            ratios = _update(ratios, q, 1.0, roulette)
-            last_null = dr.full(mi.Bool, False, n)
-            active &= (depth < self.max_depth) & (events < MAX_WALK) & dr.any(_mis(ratios) != 0.0)
+        ``medium``, a Mitsuba medium they start in), drawing from ``sampler``: one symbolic loop, each pass an event
+        of every path (a free flight in a medium, or a surface), in the steps below."""
+        path = _Path.start(sampler, ray, medium)
+        while path.active:
+            path = self._roulette(path, sampler)
+            path, mei, in_medium, escaped, scatter = self._flight(path, sampler)
+            path, scatter = self._field_ends(path, mei, scatter)
+            path = self._scatter(path, mei, scatter, sampler)
+            path = self._surface(path, in_medium, escaped, sampler)
+        dr.eval(path.result, path.valid, path.scatterings, path.ended, path.events)
+        self.counts["paths"] += dr.width(path.active)
+        self.counts["events"] += int(dr.sum(mi.UInt64(path.scatterings))[0])
+        self.counts["ended"] += int(dr.count(path.ended)[0])
+        self.counts["capped"] += int(dr.count(path.events >= MAX_WALK)[0])
+        return path.result, path.valid
 
-            # ---- in a medium: a free flight (Eq. W1's densities for every channel) ----
-            active_medium = active & (medium != None)  # noqa: E711 (a Dr.Jit pointer array)
-            active_surface = active & ~active_medium
-            mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), channel, active_medium)
-            ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid()] = mei.t
-            intersect = needs_intersection & active_medium
-            si[intersect] = scene.ray_intersect(ray, intersect)
-            needs_intersection &= ~active_medium
-            mei.t[active_medium & (si.t < mei.t)] = dr.inf
-            spectral = active_medium & medium.has_spectral_extinction()
-            trial, trial_t, trial_s = self._evaluated(medium, active_medium)
-            spectral |= trial
-            transmittance, flight_pdf = medium.transmittance_eval_pdf(mei, si, spectral)
-            transmittance[trial] = dr.exp(-trial_t * (dr.minimum(mei.t, si.t) - mei.mint))
-            ratios = _update(ratios, flight_pdf, transmittance, spectral)
-            ratios_nee = _update(ratios_nee, flight_pdf, transmittance, spectral)
-            escaped = active_medium & ~mei.is_valid()
-            active_medium &= mei.is_valid()
-            spectral &= active_medium
-            grey = active_medium & ~spectral
+    def _roulette(self, path, sampler):
+        """Russian roulette on the path's weight, the odds the weight itself (eta^2: radiance's scaling across a
+        boundary), so that a path of weight ~1 is never cut (at albedo ~1 the cut paths' rare heavy weights would be
+        fireflies); paths past ``max_depth``, :data:`MAX_WALK` events or of no weight end."""
+        q = dr.minimum(dr.max(mis(path.ratios)) * dr.square(path.eta), 1.0)
+        roulette = path.active & ~path.last_null & (path.depth + path.events > self.rr_depth)
+        path.active &= ~(roulette & (sampler.next_1d(path.active) >= q))
+        path.ratios = update(path.ratios, q, 1.0, roulette)
+        path.last_null = dr.full(mi.Bool, False, dr.width(path.active))
+        path.active &= (path.depth < self.max_depth) & (path.events < MAX_WALK) & dr.any(mis(path.ratios) != 0.0)
+        return path
 
-            null_probability = dr.sum(mei.sigma_n / mei.combined_extinction) / 3.0  # dr.mean: the width, a literal
-            null = active_medium & (sampler.next_1d(active_medium) < null_probability)
-            scatter = active_medium & ~null
-            last_null = null
-            events[scatter] += 1
-            scatterings[scatter] += 1
-            last_scatter[scatter] = _interaction(mei)
-            specular_chain &= ~scatter
-            after_scatter |= scatter
-            ratios = _update(ratios, null_probability, mei.sigma_n, spectral & null)
-            ratios_nee = _update(ratios_nee, 1.0, mei.sigma_n, spectral & null)
-            ratios_nee = _update(ratios_nee, 1.0, null_probability, grey & null)
-            ray.o[null] = mei.p
-            si.t[null] = si.t - mei.t
-            ratios = _update(ratios, 1.0 - null_probability, dr.select(trial, trial_s, mei.sigma_s), spectral & scatter)
-            ratios = _update(ratios, mei.sigma_t, mei.sigma_s, grey & scatter)
+    def _flight(self, path, sampler):
+        """In a medium: a free flight (Eq. W1's densities for every channel), then a null collision or a scattering.
+        Returns ``(path, mei, in_medium, escaped, scatter)``: the medium interaction, the lanes that were in a medium
+        and are still (``in_medium``) or left it through a surface (``escaped``), and those that scatter."""
+        ray, medium, si = path.ray, path.medium, path.si
+        active_medium = path.active & (medium != None)  # noqa: E711 (a Dr.Jit pointer array)
+        mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), path.channel, active_medium)
+        ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid()] = mei.t
+        intersect = path.needs_intersection & active_medium
+        si[intersect] = self.scene.ray_intersect(ray, intersect)
+        path.needs_intersection &= ~active_medium
+        mei.t[active_medium & (si.t < mei.t)] = dr.inf
+        spectral = active_medium & medium.has_spectral_extinction()
+        trial, trial_t, trial_s = self._evaluated(medium, active_medium)
+        spectral |= trial
+        transmittance, flight_pdf = medium.transmittance_eval_pdf(mei, si, spectral)
+        transmittance[trial] = dr.exp(-trial_t * (dr.minimum(mei.t, si.t) - mei.mint))
+        path.ratios = update(path.ratios, flight_pdf, transmittance, spectral)
+        path.ratios_nee = update(path.ratios_nee, flight_pdf, transmittance, spectral)
+        escaped = active_medium & ~mei.is_valid()
+        active_medium &= mei.is_valid()
+        spectral &= active_medium
+        grey = active_medium & ~spectral
 
-            # ---- deep enough: the channels where diffusion holds end in its field (Eq. W3) ----
-            if dr.hint(self.field is not None, mode="scalar"):
-                ends, scattered = self.field.ending(mei, medium, scatter)
-                ended |= scatter & (dr.max(ends) > 0.0)
-                result[scatter] += _mis(ratios) * scattered
-                ratios = _ended(ratios, ends)
-                scatter &= dr.any(_mis(ratios) != 0.0)
+        null_probability = dr.sum(mei.sigma_n / mei.combined_extinction) / 3.0  # dr.mean: the width, a literal
+        null = active_medium & (sampler.next_1d(active_medium) < null_probability)
+        scatter = active_medium & ~null
+        path.last_null = null
+        path.events[scatter] += 1
+        path.scatterings[scatter] += 1
+        path.last_scatter[scatter] = _interaction(mei)
+        path.specular_chain &= ~scatter
+        path.after_scatter |= scatter
+        path.ratios = update(path.ratios, null_probability, mei.sigma_n, spectral & null)
+        path.ratios_nee = update(path.ratios_nee, 1.0, mei.sigma_n, spectral & null)
+        path.ratios_nee = update(path.ratios_nee, 1.0, null_probability, grey & null)
+        ray.o[null] = mei.p
+        si.t[null] = si.t - mei.t
+        path.ratios = update(path.ratios, 1.0 - null_probability, dr.select(trial, trial_s, mei.sigma_s),
+                              spectral & scatter)
+        path.ratios = update(path.ratios, mei.sigma_t, mei.sigma_s, grey & scatter)
+        return path, mei, active_medium, escaped, scatter
 
-            # ---- a scattering vertex: next-event estimation and the phase function ----
-            phase_ctx = mi.PhaseFunctionContext(sampler)
-            phase = mei.medium.phase_function()
-            phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
-            valid |= scatter
-            result = self._next_events(result, _interaction(mei), medium, ratios, channel, sampler, scatter,
-                                       lambda d: phase.eval_pdf(phase_ctx, mei, d, scatter))  # noqa: B023 (called now)
-            ratios_nee = _where(scatter, ratios, ratios_nee)
-            wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
-                                                       sampler.next_2d(scatter), scatter)
-            ray[scatter] = mei.spawn_ray(wo)
-            needs_intersection |= scatter
-            ratios = _update(ratios, phase_pdf, phase_weight * phase_pdf, scatter)
-            ratios_nee = _update(ratios_nee, 1.0, phase_weight * phase_pdf, scatter)
+    def _field_ends(self, path, mei, scatter):
+        """Deep enough: the channels where diffusion holds end in its field (Eq. W3); ``(path, scatter)`` with the
+        lanes that still scatter (every lane where walks go to their end)."""
+        if self.field is not None:
+            ends, scattered = self.field.ending(mei, path.medium, scatter)
+            path.ended |= scatter & (dr.max(ends) > 0.0)
+            path.result[scatter] += mis(path.ratios) * scattered
+            path.ratios = ended(path.ratios, ends)
+            scatter &= dr.any(mis(path.ratios) != 0.0)
+        return path, scatter
 
-            # ---- at a surface: emission seen, then the BSDF ----
-            active_surface |= escaped
-            intersect = active_surface & needs_intersection
-            si[intersect] = scene.ray_intersect(ray, intersect)
-            valid[active_surface & (depth == 0) & (events == 0)] = si.is_valid()
-            direct = (active_surface & (depth == 0) & (events == 0)) | specular_chain
-            emitter = si.emitter(scene)
-            seen = active_surface & (emitter != None)  # noqa: E711
-            to_emitter = mi.DirectionSample3f(scene, si, last_scatter)
-            if dr.hint(self.lights[0] is None, mode="scalar"):
-                emitter_pdf = scene.pdf_emitter_direction(last_scatter, to_emitter, seen & ~direct)
-            else:  # each emitter sampled: its own density, no choice
-                emitter_pdf = emitter.pdf_direction(last_scatter, to_emitter, seen & ~direct)
-            ratios_nee = _update(ratios_nee, emitter_pdf, 1.0, seen & ~direct)
-            radiance = emitter.eval(si, seen)
-            # The light that Eq. W4 took at the last scattering vertex (an environment's it leaves to this hit).
-            seen &= ~(straight_out & ~mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite))
-            result[seen] += dr.select(direct, _mis(ratios), _mis(ratios, ratios_nee)) * radiance
-            active_surface &= si.is_valid()
+    def _scatter(self, path, mei, scatter, sampler):
+        """A scattering vertex: next-event estimation (Eq. W2) and the phase function's next direction."""
+        phase_ctx = mi.PhaseFunctionContext(sampler)
+        phase = mei.medium.phase_function()
+        phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
+        path.valid |= scatter
+        path.result = self._next_events(path.result, _interaction(mei), path.medium, path.ratios, path.channel,
+                                        sampler, scatter, lambda d: phase.eval_pdf(phase_ctx, mei, d, scatter))
+        path.ratios_nee = where(scatter, path.ratios, path.ratios_nee)
+        wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
+                                                   sampler.next_2d(scatter), scatter)
+        path.ray[scatter] = mei.spawn_ray(wo)
+        path.needs_intersection |= scatter
+        path.ratios = update(path.ratios, phase_pdf, phase_weight * phase_pdf, scatter)
+        path.ratios_nee = update(path.ratios_nee, 1.0, phase_weight * phase_pdf, scatter)
+        return path
 
-            ctx = mi.BSDFContext()
-            bsdf = si.bsdf(ray)
-            lit = active_surface & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth) & (depth + 1 < self.max_depth)
-            result = self._next_events(result, si, medium, ratios, channel, sampler, lit,
-                                       lambda d: bsdf.eval_pdf(ctx, si, si.to_local(d), lit))  # noqa: B023 (called now)
+    def _surface(self, path, in_medium, escaped, sampler):
+        """At a surface (the lanes not in a medium, and those that flew out of one): the emission seen, weighed
+        against next-event estimation (Eq. W2), then the light sampled from the surface and its BSDF's next
+        direction; a boundary leads into the medium on its other side."""
+        scene, si, ray = self.scene, path.si, path.ray
+        active_surface = (path.active & (path.medium == None)) | escaped  # noqa: E711
+        intersect = active_surface & path.needs_intersection
+        si[intersect] = scene.ray_intersect(ray, intersect)
+        first = active_surface & (path.depth == 0) & (path.events == 0)
+        path.valid[first] = si.is_valid()
+        direct = first | path.specular_chain
+        emitter = si.emitter(scene)
+        seen = active_surface & (emitter != None)  # noqa: E711
+        to_emitter = mi.DirectionSample3f(scene, si, path.last_scatter)
+        if self.lights[0] is None:
+            emitter_pdf = scene.pdf_emitter_direction(path.last_scatter, to_emitter, seen & ~direct)
+        else:  # each emitter sampled: its own density, no choice
+            emitter_pdf = emitter.pdf_direction(path.last_scatter, to_emitter, seen & ~direct)
+        path.ratios_nee = update(path.ratios_nee, emitter_pdf, 1.0, seen & ~direct)
+        radiance = emitter.eval(si, seen)
+        # The light that Eq. W4 took at the last scattering vertex (an environment's it leaves to this hit).
+        seen &= ~(path.straight_out & ~mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite))
+        path.result[seen] += dr.select(direct, mis(path.ratios), mis(path.ratios, path.ratios_nee)) * radiance
+        active_surface &= si.is_valid()
 
-            bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(active_surface), sampler.next_2d(active_surface),
-                                          active_surface)
-            active_surface &= bs.pdf > 0.0
-            eta[active_surface] *= bs.eta
-            ray[active_surface] = si.spawn_ray(si.to_world(bs.wo))
-            needs_intersection |= active_surface
-            solid = active_surface & ~mi.has_flag(bs.sampled_type, mi.BSDFFlags.Null)
-            specular_chain |= solid & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-            specular_chain &= ~(active_surface & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Smooth))
-            boundary = active_surface & si.is_medium_transition()
-            if dr.hint(self.straight_through, mode="scalar"):
-                out = boundary & after_scatter & mi.has_flag(bs.sampled_type, mi.BSDFFlags.DeltaTransmission)
-                straight_out[solid] = out & (self.classify(si)[0] >= 0)
-                after_scatter &= ~solid
-            depth[solid & ~boundary] += 1
-            events[solid & boundary] += 1
-            last_scatter[solid] = _interaction(si)
-            ratios_nee = _where(solid, ratios, ratios_nee)
-            ratios = _update(ratios, bs.pdf, bsdf_weight * bs.pdf, active_surface)
-            ratios_nee = _update(ratios_nee, 1.0, bsdf_weight * bs.pdf, solid)
-            medium[boundary] = si.target_medium(ray.d)
-            active &= active_surface | active_medium
-        dr.eval(result, valid, scatterings, ended, events)
-        self.counts["paths"] += n
-        self.counts["events"] += int(dr.sum(mi.UInt64(scatterings))[0])
-        self.counts["ended"] += int(dr.count(ended)[0])
-        self.counts["capped"] += int(dr.count(events >= MAX_WALK)[0])
-        return result, valid
+        ctx = mi.BSDFContext()
+        bsdf = si.bsdf(ray)
+        lit = active_surface & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth) & (path.depth + 1 < self.max_depth)
+        path.result = self._next_events(path.result, si, path.medium, path.ratios, path.channel, sampler, lit,
+                                        lambda d: bsdf.eval_pdf(ctx, si, si.to_local(d), lit))
+        bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(active_surface), sampler.next_2d(active_surface),
+                                      active_surface)
+        active_surface &= bs.pdf > 0.0
+        path.eta[active_surface] *= bs.eta
+        ray[active_surface] = si.spawn_ray(si.to_world(bs.wo))
+        path.needs_intersection |= active_surface
+        solid = active_surface & ~mi.has_flag(bs.sampled_type, mi.BSDFFlags.Null)
+        path.specular_chain |= solid & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+        path.specular_chain &= ~(active_surface & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Smooth))
+        boundary = active_surface & si.is_medium_transition()
+        if self.straight_through:
+            out = boundary & path.after_scatter & mi.has_flag(bs.sampled_type, mi.BSDFFlags.DeltaTransmission)
+            path.straight_out[solid] = out & (self.classify(si)[0] >= 0)
+            path.after_scatter &= ~solid
+        path.depth[solid & ~boundary] += 1
+        path.events[solid & boundary] += 1
+        path.last_scatter[solid] = _interaction(si)
+        path.ratios_nee = where(solid, path.ratios, path.ratios_nee)
+        path.ratios = update(path.ratios, bs.pdf, bsdf_weight * bs.pdf, active_surface)
+        path.ratios_nee = update(path.ratios_nee, 1.0, bsdf_weight * bs.pdf, solid)
+        path.medium[boundary] = si.target_medium(ray.d)
+        path.active &= active_surface | in_medium
+        return path
 
     def _evaluated(self, medium, active):
         """Per lane in ``medium`` (where ``active``): whether its paths are weighed by :attr:`evaluated`'s
@@ -326,9 +357,9 @@ class RandomWalk:
             end_nee, end_uni, emitted, ds, crossed = self._emitter(origin, medium, ratios, channel, sampler, active,
                                                                    light)
             value, pdf = evaluate(ds.d)
-            end_nee = _update(end_nee, 1.0, value, active)
-            end_uni = _update(end_uni, dr.select(ds.delta | crossed, 0.0, pdf), value, active)
-            result[active] += _mis(end_nee, end_uni) * emitted  # Eq. W2
+            end_nee = update(end_nee, 1.0, value, active)
+            end_uni = update(end_uni, dr.select(ds.delta | crossed, 0.0, pdf), value, active)
+            result[active] += mis(end_nee, end_uni) * emitted  # Eq. W2
         return result
 
     @dr.syntax
@@ -338,88 +369,102 @@ class RandomWalk:
         transmittance, every channel's density kept); ``(ratios as light sampling drew it, as the path's own sampling
         would, emitted L, the sample, where it crossed a smooth boundary by Eq. W4)`` (no path's own sampling reaches
         the light that way)."""
-        scene = self.scene
-        with_nee, with_uni = ratios, ratios
         if light is None:
-            ds, weight = scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
+            ds, weight = self.scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
         else:
             ds, weight = light.sample_direction(origin, sampler.next_2d(active), active)
         emitted = dr.select(ds.pdf == 0.0, 0.0, weight * ds.pdf)
         active = mi.Bool(active & (ds.pdf != 0.0))
-        with_nee = _update(with_nee, ds.pdf, 1.0, active)
         ray = origin.spawn_ray_to(ds.p)
-        max_dist = mi.Float(ray.maxt)
         medium = mi.MediumPtr(medium)
         if isinstance(origin, mi.SurfaceInteraction3f):
             medium[origin.is_medium_transition()] = origin.target_medium(ray.d)
-        total = dr.zeros(mi.Float, dr.width(max_dist))
-        si = dr.zeros(mi.SurfaceInteraction3f, dr.width(max_dist))
-        needs_intersection = dr.full(mi.Bool, True, dr.width(max_dist))
-        crossed = dr.full(mi.Bool, False, dr.width(max_dist))
-        while active:
-            remaining = max_dist - total
-            ray.maxt = remaining
-            active &= remaining > 0.0
-            active_medium = active & (medium != None)  # noqa: E711
-            active_surface = active & ~active_medium
-            mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), channel, active_medium)
-            ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid()] = dr.minimum(mei.t, remaining)
-            intersect = needs_intersection & active_medium
-            si[intersect] = scene.ray_intersect(ray, intersect)
-            mei.t[active_medium & (si.t < mei.t)] = dr.inf
-            needs_intersection &= ~active_medium
-            trial, trial_t, _ = self._evaluated(medium, active_medium)
-            spectral = active_medium & (medium.has_spectral_extinction() | trial)
-            grey = active_medium & ~spectral
-            t = dr.minimum(remaining, dr.minimum(mei.t, si.t)) - mei.mint
-            transmittance = dr.exp(-t * mei.combined_extinction)
-            flight_pdf = dr.select((si.t < mei.t) | (mei.t > remaining), transmittance,
-                                   transmittance * mei.combined_extinction)
-            transmittance[trial] = dr.exp(-t * trial_t)
-            with_nee = _update(with_nee, flight_pdf, transmittance, spectral)
-            with_uni = _update(with_uni, flight_pdf, transmittance, spectral)
-            total[active_medium & (mei.t > remaining) & mei.is_valid()] = ds.dist
-            mei.t[active_medium & (mei.t > remaining)] = dr.inf
-            escaped = active_medium & ~mei.is_valid()
-            active_medium &= mei.is_valid()
-            spectral &= active_medium
-            grey &= active_medium
-            total[active_medium] += mei.t
-            ray.o[active_medium] = mei.p
-            si.t[active_medium] = si.t - mei.t
-            with_nee = _update(with_nee, 1.0, mei.sigma_n, spectral)
-            with_uni = _update(with_uni, dr.sum(mei.sigma_n / mei.combined_extinction) / 3.0, mei.sigma_n, spectral)
-            with_nee = _update(with_nee, 1.0, mei.sigma_n / mei.combined_extinction, grey)
-            intersect = active_surface & needs_intersection
-            si[intersect] = scene.ray_intersect(ray, intersect)
-            active_surface |= escaped
-            total[active_surface] += si.t
-            inside = active_surface & (medium != None)  # noqa: E711 (leaving a medium here)
-            active_surface &= si.is_valid() & active & ~active_medium
-            bsdf = si.bsdf(ray)
-            passed = bsdf.eval_null_transmission(si, active_surface)
-            # A delta light through a translucent object's smooth dielectric boundary, which no path can reach (with
-            # straight_through, every light but the environment): straight out, times the Fresnel transmittance, the
-            # beam's compression and, in a homogeneous medium, the refracted path's length inside (Eq. W4). A rough one
-            # is left to the next-event estimation at the boundary, where its BSDF takes the light.
-            which, eta = self.classify(si)
-            smooth = ~mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-            straight = ds.delta | (self.straight_through & ~mi.has_flag(ds.emitter.flags(), mi.EmitterFlags.Infinite))
-            cos = dr.dot(si.n, ray.d)  # > 0: leaving along the outward normal
-            through = inside & (cos > 0.0) & active_surface & straight & (which >= 0) & smooth & (dr.max(passed) == 0.0)
-            crossed |= through
-            cos_out = dr.abs(cos)
-            compression = cos_out / dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
-            sigma_t = dr.select(medium.is_homogeneous(), mi.Color3f(mei.combined_extinction), 0.0)
-            sigma_t[trial] = trial_t
-            passed[through] = (fresnel_transmittance(eta, cos_out) * compression
-                               * dr.exp(-sigma_t * total * (compression - 1.0)))  # Eq. W4
-            with_nee = _update(with_nee, 1.0, passed, active_surface)
-            with_uni = _update(with_uni, 1.0, passed, active_surface)
-            ray[active_surface] = si.spawn_ray(ray.d)
-            ray.maxt = remaining
-            needs_intersection |= active_surface
-            active &= (active_medium | active_surface) & dr.any(_mis(with_uni) != 0.0)
-            crossing = active_surface & si.is_medium_transition()
-            medium[crossing] = si.target_medium(ray.d)
-        return with_nee, with_uni, emitted, ds, crossed
+        n = dr.width(ray.maxt)
+        shadow = _Shadow(ray=ray, max_dist=mi.Float(ray.maxt), medium=medium, total=dr.zeros(mi.Float, n),
+                         si=dr.zeros(mi.SurfaceInteraction3f, n), needs_intersection=dr.full(mi.Bool, True, n),
+                         crossed=dr.full(mi.Bool, False, n), with_nee=update(ratios, ds.pdf, 1.0, active),
+                         with_uni=ratios, active=active)
+        while shadow.active:
+            remaining = shadow.max_dist - shadow.total
+            shadow, mei, in_medium, escaped, trial, trial_t = self._shadow_flight(shadow, sampler, channel, ds,
+                                                                                  remaining)
+            shadow = self._shadow_surface(shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining)
+        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed
+
+    def _shadow_flight(self, shadow, sampler, channel, ds, remaining):
+        """One step of the shadow ray in a medium (``remaining`` the distance left to the light): ratio tracking to
+        the next null collision or surface."""
+        ray, si, medium = shadow.ray, shadow.si, shadow.medium
+        ray.maxt = remaining
+        shadow.active &= remaining > 0.0
+        active_medium = shadow.active & (medium != None)  # noqa: E711
+        mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), channel, active_medium)
+        ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid()] = dr.minimum(mei.t, remaining)
+        intersect = shadow.needs_intersection & active_medium
+        si[intersect] = self.scene.ray_intersect(ray, intersect)
+        mei.t[active_medium & (si.t < mei.t)] = dr.inf
+        shadow.needs_intersection &= ~active_medium
+        trial, trial_t, _ = self._evaluated(medium, active_medium)
+        spectral = active_medium & (medium.has_spectral_extinction() | trial)
+        grey = active_medium & ~spectral
+        t = dr.minimum(remaining, dr.minimum(mei.t, si.t)) - mei.mint
+        transmittance = dr.exp(-t * mei.combined_extinction)
+        flight_pdf = dr.select((si.t < mei.t) | (mei.t > remaining), transmittance,
+                               transmittance * mei.combined_extinction)
+        transmittance[trial] = dr.exp(-t * trial_t)
+        shadow.with_nee = update(shadow.with_nee, flight_pdf, transmittance, spectral)
+        shadow.with_uni = update(shadow.with_uni, flight_pdf, transmittance, spectral)
+        shadow.total[active_medium & (mei.t > remaining) & mei.is_valid()] = ds.dist
+        mei.t[active_medium & (mei.t > remaining)] = dr.inf
+        escaped = active_medium & ~mei.is_valid()
+        active_medium &= mei.is_valid()
+        spectral &= active_medium
+        grey &= active_medium
+        shadow.total[active_medium] += mei.t
+        ray.o[active_medium] = mei.p
+        si.t[active_medium] = si.t - mei.t
+        shadow.with_nee = update(shadow.with_nee, 1.0, mei.sigma_n, spectral)
+        shadow.with_uni = update(shadow.with_uni, dr.sum(mei.sigma_n / mei.combined_extinction) / 3.0, mei.sigma_n,
+                                  spectral)
+        shadow.with_nee = update(shadow.with_nee, 1.0, mei.sigma_n / mei.combined_extinction, grey)
+        return shadow, mei, active_medium, escaped, trial, trial_t
+
+    def _shadow_surface(self, shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining):
+        """The shadow ray at a surface: through a null one, blocked by any other, except a smooth dielectric boundary
+        of a translucent object that a delta light (every light but the environment where :attr:`straight_through`)
+        crosses straight out by Eq. W4."""
+        ray, si, medium = shadow.ray, shadow.si, shadow.medium
+        active_surface = shadow.active & (medium == None)  # noqa: E711
+        intersect = active_surface & shadow.needs_intersection
+        si[intersect] = self.scene.ray_intersect(ray, intersect)
+        active_surface |= escaped
+        shadow.total[active_surface] += si.t
+        inside = active_surface & (medium != None)  # noqa: E711 (leaving a medium here)
+        active_surface &= si.is_valid() & shadow.active & ~in_medium
+        bsdf = si.bsdf(ray)
+        passed = bsdf.eval_null_transmission(si, active_surface)
+        # A delta light through a translucent object's smooth dielectric boundary, which no path can reach (with
+        # straight_through, every light but the environment): straight out, times the Fresnel transmittance, the
+        # beam's compression and, in a homogeneous medium, the refracted path's length inside (Eq. W4). A rough one
+        # is left to the next-event estimation at the boundary, where its BSDF takes the light.
+        which, eta = self.classify(si)
+        smooth = ~mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+        straight = ds.delta | (self.straight_through & ~mi.has_flag(ds.emitter.flags(), mi.EmitterFlags.Infinite))
+        cos = dr.dot(si.n, ray.d)  # > 0: leaving along the outward normal
+        through = inside & (cos > 0.0) & active_surface & straight & (which >= 0) & smooth & (dr.max(passed) == 0.0)
+        shadow.crossed |= through
+        cos_out = dr.abs(cos)
+        compression = cos_out / dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
+        sigma_t = dr.select(medium.is_homogeneous(), mi.Color3f(mei.combined_extinction), 0.0)
+        sigma_t[trial] = trial_t
+        passed[through] = (fresnel_transmittance(eta, cos_out) * compression
+                           * dr.exp(-sigma_t * shadow.total * (compression - 1.0)))  # Eq. W4
+        shadow.with_nee = update(shadow.with_nee, 1.0, passed, active_surface)
+        shadow.with_uni = update(shadow.with_uni, 1.0, passed, active_surface)
+        ray[active_surface] = si.spawn_ray(ray.d)
+        ray.maxt = remaining
+        shadow.needs_intersection |= active_surface
+        shadow.active &= (in_medium | active_surface) & dr.any(mis(shadow.with_uni) != 0.0)
+        crossing = active_surface & si.is_medium_transition()
+        medium[crossing] = si.target_medium(ray.d)
+        return shadow
