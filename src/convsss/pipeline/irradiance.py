@@ -36,7 +36,7 @@ import numpy as np
 from ..backend import load_mitsuba, to_numpy3
 from ..fresnel import same_eta
 from ..hashtable import capacity, empty, probe
-from ..profiles.incidence import GAIN_NODES, Orders, gain_table
+from ..profiles.incidence import GAIN_NODES, Orders, exit_normalization, gain_table
 from .mis import power_heuristic
 from .shadow import Shadows
 from .surface import sample_surface
@@ -103,6 +103,21 @@ class Entry:
         t = x - mi.Float(node)
         return mi.Color3f(*[dr.lerp(dr.gather(mi.Float, self.gains, node + c * GAIN_NODES),
                                     dr.gather(mi.Float, self.gains, node + c * GAIN_NODES + 1), t) for c in range(3)])
+
+
+class Leaving:
+    """The exit gain of a medium of reduced ``albedo`` (3,) behind a boundary of index ``eta``: ``g(mu_o) / k`` per
+    channel (Eq. O4), what multiplies paper Eq. 7's ``(1/pi) F_t(eta, w_o)`` (the gain is
+    :class:`~convsss.pipeline.irradiance.Entry`'s)."""
+
+    def __init__(self, eta, albedo, orders=Orders.ALL):
+        self.entry = Entry(eta, albedo, orders)
+        self.scale = mi.Color3f(*(1.0 / exit_normalization(np.asarray(albedo, dtype=np.float64), eta,
+                                                           orders)).tolist())
+
+    def __call__(self, cos):
+        """``Color3f`` for Dr.Jit cosines ``cos`` on the outside."""
+        return self.entry.gain(cos) * self.scale
 
 
 def keeps_irradiance(old, new, incidence, orders=Orders.ALL):

@@ -71,8 +71,7 @@ import drjit as dr
 import numpy as np
 
 from ..backend import load_mitsuba, to_numpy3
-from ..profiles.incidence import Orders, exit_normalization
-from .irradiance import Entry, fresnel_transmittance, refracted_cosine
+from .irradiance import Leaving, fresnel_transmittance, refracted_cosine
 from .lookups import ExitanceLookups
 from .mis import power_heuristic
 from .shadow import Shadows, classify
@@ -90,19 +89,13 @@ CROSSING_FLOOR = 1e-3
 RECORD_ROOM = 1.0
 
 
-class Leaving:
-    """The exit gain of a medium of reduced ``albedo`` (3,) behind a boundary of index ``eta``: ``g(mu_o) / k`` per
-    channel (Eq. O4), what multiplies paper Eq. 7's ``(1/pi) F_t(eta, w_o)`` (the gain is
-    :class:`~convsss.pipeline.irradiance.Entry`'s)."""
-
-    def __init__(self, eta, albedo, orders=Orders.ALL):
-        self.entry = Entry(eta, albedo, orders)
-        self.scale = mi.Color3f(*(1.0 / exit_normalization(np.asarray(albedo, dtype=np.float64), eta,
-                                                           orders)).tolist())
-
-    def __call__(self, cos):
-        """``Color3f`` for Dr.Jit cosines ``cos`` on the outside."""
-        return self.entry.gain(cos) * self.scale
+def _record(records, count, room, asked, values):
+    """Append ``values`` (per lane) of the ``asked`` lanes to ``records``, counting them all in ``count`` and keeping
+    the first ``room`` (opaque: the kernel outlives the image's size)."""
+    slot = dr.scatter_inc(count, mi.UInt32(0), asked)
+    kept = asked & (slot < dr.opaque(mi.UInt32, room))
+    for record, value in zip(records, values):
+        dr.scatter(record, value, slot, kept)
 
 
 class PathTracer:
@@ -203,6 +196,13 @@ class PathTracer:
                 light = light * self.shadows.visibility(it, ds, active & (ds.pdf > 0))
             out.append((ds, light))
         return out
+
+    def _direct_light(self, si, bsdf, ray_d, eta, u_light, translucent, opaque, alive):
+        """Direct light by emitter sampling: :meth:`_direct` of each of :meth:`_light_samples`."""
+        direct_light = dr.zeros(mi.Color3f, dr.width(si.p))
+        for ds, light in self._light_samples(si, u_light, alive):
+            direct_light += self._direct(si, bsdf, ray_d, eta, translucent, opaque, alive, ds, light)
+        return direct_light
 
     def _direct(self, si, bsdf, ray_d, eta, translucent, opaque, alive, ds, light):
         """One emitter sample's contribution: the BSDF (power-heuristic MIS) on opaque shapes; on translucent ones the
@@ -377,30 +377,19 @@ class PathTracer:
             weight = throughput * self._leaving(which, eta, si.wi.z)  # times M: paper Eq. 7 (or O4)
             known, sss = self.lookups.on_screen(si, which, translucent, weight)
             contribution += sss
-            asked = translucent & ~known
-            slot = dr.scatter_inc(count, mi.UInt32(0), asked)
-            kept = asked & (slot < dr.opaque(mi.UInt32, room))  # opaque: the kernel outlives the image's size
-            first = depth == 0
-            for record, value in zip(records, (which, si.p, mi.Vector3f(si.n), weight, lane, first, si.prim_index)):
-                dr.scatter(record, value, slot, kept)
+            _record(records, count, room, translucent & ~known,
+                    (which, si.p, mi.Vector3f(si.n), weight, lane, depth == 0, si.prim_index))
 
             bsdf = si.bsdf(ray)
-            u_light = sampler.next_2d(alive)
-            u_lobe = sampler.next_1d(alive | leaving)
-            u_dir = sampler.next_2d(alive | leaving)
-            u_rr = sampler.next_1d(alive | leaving)
-            u_through = sampler.next_1d(translucent)
+            sampled = alive | leaving
+            u_light, u_lobe, u_dir = sampler.next_2d(alive), sampler.next_1d(sampled), sampler.next_2d(sampled)
+            u_rr, u_through = sampler.next_1d(sampled), sampler.next_1d(translucent)
 
-            # Direct light by emitter sampling.
             opaque = alive & (which < 0)
-            direct_light = dr.zeros(mi.Color3f, n_lanes)
-            for ds, light in self._light_samples(si, u_light, alive):
-                direct_light += self._direct(si, bsdf, ray.d, eta, translucent, opaque, alive, ds, light)
-            contribution += throughput * direct_light
-            if self.single:
-                u_distance = sampler.next_1d(translucent)
-                u_emitter = sampler.next_2d(translucent)
-                contribution += throughput * self._single(si, which, eta, u_distance, u_emitter, translucent)
+            contribution += throughput * self._direct_light(si, bsdf, ray.d, eta, u_light, translucent, opaque, alive)
+            if self.single:  # the distance's sample, then the emitters'
+                contribution += throughput * self._single(si, which, eta, sampler.next_1d(translucent),
+                                                          sampler.next_2d(translucent), translucent)
 
             bs, bsdf_weight, continues, entering, exiting = self._bounce(si, bsdf, which, eta, u_lobe, u_dir, u_through,
                                                                          opaque, translucent, leaving)
@@ -412,11 +401,8 @@ class PathTracer:
             throughput = dr.select(roulette & continues, throughput / q, throughput)
 
             total += contribution
-            direction = si.to_world(bs.wo)
-            ray = si.spawn_ray(direction)
-            prev_p = mi.Point3f(si.p)
-            prev_n = mi.Vector3f(si.n)
-            prev_pdf = mi.Float(bs.pdf)
+            ray = si.spawn_ray(si.to_world(bs.wo))
+            prev_p, prev_n, prev_pdf = mi.Point3f(si.p), mi.Vector3f(si.n), mi.Float(bs.pdf)
             # Emission after a crossing has full weight: no light is sampled inside an object or on its far side.
             prev_delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta) | leaving
             inside = dr.select(entering, which, dr.select(exiting, -1, inside))
