@@ -533,3 +533,16 @@ def test_a_scene_without_emitters_renders_black(mi, sphere_scene, walk_depth):
     scene = mi.load_dict(sphere_scene(res=8, spp=1, emitters={}, integrator={"walk_depth": walk_depth}))
     image = np.array(convsss.render(scene), dtype=np.float64)
     assert image.shape[:2] == (8, 8) and np.all(image[..., :3] == 0)
+
+
+def test_a_walk_to_the_end_names_the_transport_parameters_it_ignores(mi, sphere_scene):
+    """Issue 62: the transports' parameters changed nothing where every object walks, without a warning."""
+    from convsss.pipeline.params import IgnoredParameterWarning
+
+    scene = mi.load_dict(sphere_scene(res=8, spp=1, integrator={"walk_depth": "inf", "incidence": "normal"}))
+    with pytest.warns(IgnoredParameterWarning, match=r"^incidence: every translucent object walks to its end"):
+        convsss.render(scene)
+    quiet = mi.load_dict(sphere_scene(res=8, spp=1, integrator={"walk_depth": "inf"}))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", IgnoredParameterWarning)
+        convsss.render(quiet)

@@ -123,3 +123,14 @@ def test_replace_changes_what_it_names_and_checks_it():
     assert (q.walk_depth, q.layers, q.transport) == (2.0, 4, "convolution") and p.walk_depth == "auto"
     with pytest.raises(ConvsssError, match="layers=1"):
         p.replace(layers=1)
+
+
+def test_where_every_object_walks_the_transports_parameters_set_are_named():
+    """Issue 62: --profile, --accuracy, --incidence, --single-scattering changed nothing where every object walks,
+    without a word. Those set away from their defaults are named (the renderer warns with them); defaults are not."""
+    from convsss.pipeline.params import walk_ignored
+
+    assert walk_ignored(RenderParams(walk_depth="inf")) == []
+    named = walk_ignored(RenderParams(walk_depth="inf", profile="pbd", incidence="normal", accuracy=0.003,
+                                      single_scattering="profile", profile_total="model"))
+    assert named == ["incidence", "single_scattering", "profile_total", "profile", "accuracy"]

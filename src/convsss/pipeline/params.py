@@ -234,7 +234,28 @@ def render_mode(params, objects):
 
 
 class IgnoredParameterWarning(UserWarning):
-    """An integrator parameter belongs to another transport than the one rendering: it has no effect."""
+    """An integrator parameter belongs to another transport than the one rendering, or to the transports where every
+    object walks to its end: it has no effect."""
+
+
+#: The parameters of the transports, which a render whose every translucent object walks to its end never reads
+#: (the walk renders the media themselves). ``specular`` and ``phong_exponent`` are not read either (the walk shades
+#: the boundary by its BSDF), but a scene made by ``--mesh`` sets them without being asked: not warned about.
+TRANSPORT_ONLY = ("transport", "irradiance_samples", "indirect_samples", "indirect_passes", "incidence",
+                  "single_scattering", "profile_total", "sample_density", "profile_samples", "profile")
+
+
+def walk_ignored(params):
+    """The parameters of ``params`` set away from their defaults that a render walking every object to its end
+    never reads (:data:`TRANSPORT_ONLY`, and every transport option given); the passes' shares of the samples
+    aside."""
+    defaults = {p.name: p.default for p in render_parameters()}
+    defaults.update({name: p.default for name, p in transport_parameters().items()})
+    defaults.update({p.name: p.default for p in params.transport_class().parameters if p.exposed})
+    shared = ("sample_density", "profile_samples") if params.passes > 1 else ()
+    values = params.to_dict()
+    options = sorted(name for name in values if name in transport_parameters() and values[name] != defaults[name])
+    return [name for name in TRANSPORT_ONLY if name not in shared and values[name] != defaults[name]] + options
 
 
 class RenderParams:

@@ -26,6 +26,7 @@ render may reuse (:meth:`RenderSession.reuse`), what an edit rebuilds (:meth:`Re
 import hashlib
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import drjit as dr
@@ -41,7 +42,15 @@ from .field import diffusion_field
 from .irradiance import keeps_irradiance
 from .lighting import light_samples
 from .objects import check_lights_outside, find_translucent_objects
-from .params import RenderMode, parse_aovs, reads_transports, render_mode, render_parameters
+from .params import (
+    IgnoredParameterWarning,
+    RenderMode,
+    parse_aovs,
+    reads_transports,
+    render_mode,
+    render_parameters,
+    walk_ignored,
+)
 from .passes import build_transports, translucent_passes
 from .path_tracer import PathTracer
 from .plan import plan_samples
@@ -211,6 +220,11 @@ class RenderSession:
         per_object = [{**obj.summary(), **q.summary(obj.area_mm2)} for obj, q in zip(shown, plan.objects)]
         tracer = PathTracer(scene, shown, p, mode, stop=self.stop, shadows=Shadows(scene, objects, p.unit_mm))
         if self.walks_alone:  # the walk reaches every interior itself: no samples, irradiance or transports
+            ignored = walk_ignored(p)
+            if ignored:
+                warnings.warn(f"{', '.join(ignored)}: every translucent object walks to its end (walk_depth {mode}), "
+                              "which renders their media themselves: these parameters of the transports have no "
+                              "effect", IgnoredParameterWarning, stacklevel=2)
             self._attach(tracer, [None] * len(shown), None)
             self.stats = {"parameters": asked, "walk_depth": str(mode), "seconds": dict(timer),
                           "objects": per_object, "hidden": list(plan.hidden), "samples": 0, "translucent_passes": 0,
