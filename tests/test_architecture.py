@@ -92,3 +92,22 @@ def test_no_module_imports_itself_back_through_others():
     for module in sorted(edges):
         if module not in state:
             visit(module, [module])
+
+
+def _where_to_change():
+    """The "where to change what" section's pairs "`name` in `pkg/module.py`"."""
+    text = PAGE.read_text()
+    section = text[text.index("## Where to change what"):text.index("## Physics conventions")]
+    return re.findall(r"`([A-Za-z_][A-Za-z_0-9.]*)` in\s+`((?:[a-z_]+/)*[a-z_]+\.py)`", section)
+
+
+def test_where_to_change_what_names_something():
+    assert len(_where_to_change()) >= 10
+
+
+@pytest.mark.parametrize("name, path", _where_to_change())
+def test_where_to_change_what_names_what_its_module_holds(name, path):
+    """Issue 59: the page's "where to change what" stays true to the code: each name it places in a module is there."""
+    owner = importlib.import_module("convsss." + path[:-3].replace("/", "."))
+    for part in name.split("."):
+        owner = getattr(owner, part)
