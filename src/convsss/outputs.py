@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import ConvsssError
 from .files import check_outputs, json_ready, output_paths, text_writer, write_files
-from .pipeline.seeds import samples_per_pixel
+from .pipeline.parts import samples_per_pixel
 from .scene.quick import SPP
 
 

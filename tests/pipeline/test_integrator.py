@@ -432,7 +432,7 @@ def test_passes_average_renders_of_fresh_samples_each_with_its_share(mi, sphere_
     """passes=4 at spp 8 is the mean of four one-pass renders, each with a quarter of the surface samples
     (sample_density and profile_samples / 4), 2 camera samples and the pass's own seed (the first: the render's)."""
     from convsss.pipeline.params import PROFILE_SAMPLES
-    from convsss.pipeline.seeds import pass_seed
+    from convsss.pipeline.parts import pass_seed
 
     scene, image = _render(mi, sphere_scene(integrator={"passes": 4}, res=24, spp=8), seed=3)
     stats = scene.integrator().stats

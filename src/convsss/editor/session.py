@@ -27,7 +27,7 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material, OpticallyThinWarning, catalog
 from ..materials import material as preset_material
-from ..pipeline.seeds import samples_per_pixel
+from ..pipeline.parts import samples_per_pixel
 from ..profiles import ScaledProfile, TabulatedProfile, material_from_color
 from ..profiles.models import (
     PROFILE_MODELS,

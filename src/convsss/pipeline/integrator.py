@@ -29,8 +29,8 @@ from .params import (
     parse_aovs,
     plugin_parameters,
 )
+from .parts import as_seed, render_passes, samples_per_pixel, shade_in_parts
 from .plan import check_film
-from .seeds import as_seed, pass_seed, samples_per_pixel, shares
 from .session import RenderSession
 
 mi = load_mitsuba()
@@ -221,7 +221,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         kept = (session.prepared, session.tracer, session.aovs) if session.keep else None
         try:
             if self.params.passes > 1:
-                return session.render_passes(scene, sensor, as_seed(seed), spp_used,
+                return render_passes(session, scene, sensor, as_seed(seed), spp_used,
                                              lambda share, own: self.render_prepared(spp=share, seed=own))
             reused = session.reuse(scene, sensor, as_seed(seed))
             image = self.render_prepared(spp=spp, seed=seed, develop=develop, evaluate=evaluate)
@@ -281,22 +281,16 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
 
     def _shade(self, scene, sensor, seed, spp, develop, evaluate, walks):
         """Mitsuba's render loop over the camera rays; with random ``walks`` (one kernel each, as long as its
-        longest walk) in chunks of about :data:`WALK_LANES` paths, each of its own seed (:func:`~.seeds.pass_seed`)
+        longest walk) in chunks of about :data:`WALK_LANES` paths, each of its own seed (:func:`~.parts.pass_seed`)
         so that Ctrl-C stops between them: the image is their mean."""
         chunk = max(1, WALK_LANES // math.prod(sensor.film().crop_size())) if walks and develop else spp
         if chunk >= spp:
             image = mi.SamplingIntegrator.render(self, scene, sensor, seed, spp, develop, evaluate)
             dr.eval(image)
             return image
-        total, done = None, 0
-        for k, share in enumerate(shares(spp, most=chunk)):
-            if self.should_stop():
-                break
-            part = mi.SamplingIntegrator.render(self, scene, sensor, pass_seed(seed, k), share, develop, evaluate)
-            total = part * share if total is None else total + part * share
-            dr.eval(total)
-            done += share
-        return total / done
+        return shade_in_parts(lambda own, share: mi.SamplingIntegrator.render(self, scene, sensor, own, share, develop,
+                                                                              evaluate), spp, chunk, seed,
+                              self.should_stop)
 
     def sample(self, scene, sampler, ray, medium=None, active=True):
         session = self.session

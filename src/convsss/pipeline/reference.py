@@ -18,7 +18,7 @@ import numpy as np
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..signals import mitsuba_render
-from .seeds import pass_seed, shares
+from .parts import pass_seed, shares
 
 #: Russian roulette starts at this depth, i.e. never in practice.
 NO_RUSSIAN_ROULETTE = 1 << 30
@@ -72,7 +72,7 @@ def render_reference(scene, spp, pass_spp=16, seed=0, on_pass=None, sensor=0):
     pass_spp : int
         Samples per pixel of each pass (the last one may have fewer).
     seed : int
-        Pass ``k`` uses the seed :func:`~.seeds.pass_seed` ``(seed, k)``, as the passes of a ``convsss`` render: the
+        Pass ``k`` uses the seed :func:`~.parts.pass_seed` ``(seed, k)``, as the passes of a ``convsss`` render: the
         same seed gives the same image up to the order in which Mitsuba's threads add samples into the film (about
         1e-7 relative).
     on_pass : callable, optional

@@ -25,7 +25,6 @@ render may reuse (:meth:`RenderSession.reuse`), what an edit rebuilds (:meth:`Re
 
 import hashlib
 import math
-import time
 import warnings
 from dataclasses import dataclass, field
 
@@ -51,11 +50,11 @@ from .params import (
     render_parameters,
     walk_ignored,
 )
+from .parts import as_seed
 from .passes import build_transports, translucent_passes
 from .path_tracer import PathTracer
 from .plan import plan_samples
 from .screen import ScreenExitance
-from .seeds import as_seed, pass_seed, shares
 from .shadow import Shadows
 from .stages import STAGES
 
@@ -408,40 +407,3 @@ class RenderSession:
         if changed:
             raise ConvsssError(f"retransport cannot change {', '.join(changed)}: the samples depend on it; call "
                                "prepare() with the new parameters")
-
-    def render_passes(self, scene, sensor, seed, spp, shade):
-        """A render in ``passes`` passes: each prepares fresh samples (its share of ``sample_density`` and
-        ``profile_samples``, seed :func:`pass_seed`) and shades its share of ``spp`` with ``shade(spp, seed)`` (the
-        plugin's Mitsuba loop); returns the passes' mean, weighted by their camera samples. Stops early at
-        ``time_limit``. :attr:`stats` sums the stages' seconds and lists the passes; its ``objects`` are the last
-        pass's."""
-        p = self.params
-        parts = shares(spp, parts=p.passes)
-        count = len(parts)
-        share_params = p.replace(sample_density=p.sample_density / count, profile_samples=p.profile_samples / count)
-        start, seconds, done, image, survey = time.perf_counter(), {}, [], None, None
-        try:
-            self.params = share_params
-            for k, share in enumerate(parts):
-                self.announce(f"pass {k + 1}/{count}")
-                pass_start, own_seed = time.perf_counter(), pass_seed(seed, k)
-                self.prepare(scene, sensor, own_seed, survey)
-                survey = self.prepared.survey
-                shaded = shade(share, own_seed)
-                image = shaded * share if image is None else image + shaded * share
-                for name, t in self.stats["seconds"].items():
-                    seconds[name] = seconds.get(name, 0.0) + t
-                done.append({"seed": own_seed, "spp": share, "samples": self.stats["samples"],
-                             "seconds": time.perf_counter() - pass_start})
-                elapsed = time.perf_counter() - start
-                if p.time_limit and k + 1 < count and elapsed * (k + 2) / (k + 1) > p.time_limit:
-                    break
-        finally:
-            self.params = p
-            # Mitsuba's render sets the sampler's count to each pass's share: leave it as a one-pass render would
-            sensor.sampler().set_sample_count(spp)
-        spp_done = sum(d["spp"] for d in done)
-        self.stats.update(parameters=p.to_dict(), seconds=seconds, passes=done,
-                          samples=sum(d["samples"] for d in done))
-        self.stats["film"]["spp"] = spp_done
-        return image * (1.0 / spp_done)
