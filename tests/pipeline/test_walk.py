@@ -185,3 +185,21 @@ def test_auto_walks_leave_the_environment_behind_a_smooth_boundary_to_the_paths_
     scene = sphere_scene(material="potato", radius=1.0, boundary="dielectric", res=RES,
                          emitters=_lights(mi, "environment", 1.0))
     _compare(mi, mi.load_dict(scene), walk_depth="auto")
+
+
+@pytest.mark.parametrize("alpha, warned", [(0.01, True), (0.3, False)])
+def test_a_near_delta_rough_boundary_under_a_point_light_is_said(mi, sphere_scene, alpha, warned):
+    """Issue 62: a 2 mm milk sphere behind a rough dielectric of alpha 0.001-0.01 under a point light rendered black
+    (6e-10 against the smooth boundary's 0.037) without a word: the walk finds the near-delta lobe by chance."""
+    import warnings
+
+    from convsss.pipeline.walk import NearDeltaBoundaryWarning
+
+    scene_dict = sphere_scene(material="wholemilk", radius=1.0, res=8, spp=1, boundary="roughdielectric",
+                              integrator={"walk_depth": "inf"})
+    scene_dict["object"]["bsdf"]["alpha"] = alpha
+    scene = mi.load_dict(scene_dict)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        convsss.render(scene)
+    assert any(issubclass(w.category, NearDeltaBoundaryWarning) for w in caught) == warned

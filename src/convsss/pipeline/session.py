@@ -57,6 +57,7 @@ from .plan import plan_samples
 from .screen import ScreenExitance
 from .shadow import Shadows
 from .stages import STAGES
+from .walk import warn_near_delta_boundaries
 
 mi = load_mitsuba()
 
@@ -218,6 +219,8 @@ class RenderSession:
         cells = [q.pixel_footprint_mm for q in plan.objects]
         per_object = [{**obj.summary(), **q.summary(obj.area_mm2)} for obj, q in zip(shown, plan.objects)]
         tracer = PathTracer(scene, shown, p, mode, stop=self.stop, shadows=Shadows(scene, objects, p.unit_mm))
+        if mode.walks:
+            warn_near_delta_boundaries(scene, shown)
         if self.walks_alone:  # the walk reaches every interior itself: no samples, irradiance or transports
             ignored = walk_ignored(p)
             if ignored:
