@@ -320,66 +320,78 @@ def _disagreement_numbers(figures, h):
     return out
 
 
+def _fig2_lines(fig2):
+    """The bullet points on Fig. 2 (convolutions per layer, the image's change with the threshold)."""
+    out = []
+    parts = [f"{p['size']} bunny at t = {100 * p['threshold']:g} %: paper c = {p['paper']}, ours c = {p['c']:.2f} "
+             f"(d_t = {p['dt_mm']:.2f} mm, dz = {p['dz_mm']:.2f} mm)" for p in fig2["paper_c"]]
+    full = fig2["full_c"]
+    out.append("- **Fig. 2, convolutions per layer c.** " + "; ".join(parts) + ". c counts, per layer, the "
+               "source layers within d_t = R_d⁻¹(t R_d(0)) (Eq. 8, the largest over RGB) of it, averaged over "
+               "the layers (end layers have fewer neighbours, so c < 2 d_t/dz + 1). It depends on the profile "
+               "and the object's depth, which the paper gives only as \"ten times smaller\": our 4 mm and 40 mm "
+               "bunnies are our choice, and wholemilk's blue channel, with the longest reach relative to its "
+               "R_d(0), sets d_t. "
+               + ("With t = 0 every pair is kept: c = " + ", ".join(f"{c:.2f}" for c in full)
+                  + " (the paper's 8 minus the end-layer effect)." if full else ""))
+    if fig2["small_mre"] is not None:
+        out.append("- **Fig. 2, image change with t** (small bunny, err vs exact at t = 0, 0.1 %, 5 %): "
+                   + ", ".join(_pct(e) for e in fig2["small_mre"])
+                   + ". The paper sees \"almost identical\" results at 0.1 % and a noticeable difference at 5 %.")
+    return out
+
+
+def _fig5_lines(fig5):
+    """The bullet points on Fig. 5 (the layers against the exact sum, and the plane correction)."""
+    out = []
+    layers, ratio, mre = fig5["layers"], fig5["ratio"], fig5["mre"]
+    ratios = ", ".join(f"{k} layers {x:.3f}" for k, x in zip(layers, ratio))
+    errs = ", ".join(f"{k}: {_pct(e)}" for k, e in zip(layers, mre))
+    mfp = fig5["mean_free_paths"]
+    dz_text = ", ".join(f"{k} layers dz = {d:.1f} mm" for k, d in zip(layers, fig5["dz_mm"]) if d)
+    closest, last = fig5["closest"], len(layers) - 1
+    trend = ("The per-pixel error falls monotonically with the layer count, as the paper's Fig. 5 suggests, "
+             if fig5["monotone"] else "The per-pixel error does not fall monotonically with the layer count, "
+             "unlike what the paper's Fig. 5 suggests, ")
+    trend += (f"but the brightness does not converge from one side: the ratio is closest to 1 at "
+              f"{layers[closest]} layers and {layers[last]} layers are "
+              f"{100 * (1 - ratio[last]):.0f} % darker than the exact sum. "
+              if ratio[last] < 0.95 and closest != last else "and so does the brightness. ")
+    if ratio[0] > 1.25:
+        trend += (f"With {layers[0]} layers the image is {ratio[0]:.1f}× "
+                  "as bright as the exact sum: the paper finds \"good solutions with a very low number of "
+                  "layers\", but it tone-mapped every image on its own (the photographic operator keys on each "
+                  "image's log-average), which hides a global brightness factor; our sheets show every panel "
+                  "at the exposure of the exact sum. ")
+    out.append("- **Fig. 5, layers.** Against the exact sum, mean ratio: " + ratios + "; mean relative error "
+               + errs + ". " + trend
+               + "The layered scheme replaces the depth offset between a surface sample and a shaded point by a "
+               "multiple of the layer spacing (" + dz_text + "), an error of first order in dz over the mean "
+               "free path"
+               + (f" (the bunny spans {', '.join(f'{m:.0f}' for m in mfp)} mean free paths in R, G, B)" if mfp
+                  else "")
+               + ". Two errors of opposite sign follow: surface at different depths inside one layer slab "
+               "couples as if at the same depth (too bright: dominant with few, thick layers), and a sample "
+               "split between two layers many mean free paths apart reaches the shaded point partly through "
+               "R_d(dz), which is small (too dark: dominant with many layers until dz nears the mean free "
+               "path). The paper judged its Fig. 5 by eye against the hierarchical method; the pixel errors "
+               "are ours (see the error maps).")
+    if fig5["plane"]:
+        out.append("- **Fig. 5, beyond the paper.** With the plane correction of the depth discretization "
+                   "(convsss.transport.correction), against the exact sum: " + ", ".join(
+                       f"{p['layers']} layers: ratio {p['ratio']:.3f}, mean relative error {_pct(p['mre'])}"
+                       for p in fig5["plane"]) + ".")
+    return out
+
+
 def _disagreement_lines(n, resolution):
     """The bullet points of "Where this disagrees with the paper" from :func:`_disagreement_numbers` (``n``) and the
     run's panel ``resolution``."""
     out = []
-    fig2 = n.get("fig2")
-    if fig2:
-        parts = [f"{p['size']} bunny at t = {100 * p['threshold']:g} %: paper c = {p['paper']}, ours c = {p['c']:.2f} "
-                 f"(d_t = {p['dt_mm']:.2f} mm, dz = {p['dz_mm']:.2f} mm)" for p in fig2["paper_c"]]
-        full = fig2["full_c"]
-        out.append("- **Fig. 2, convolutions per layer c.** " + "; ".join(parts) + ". c counts, per layer, the "
-                   "source layers within d_t = R_d⁻¹(t R_d(0)) (Eq. 8, the largest over RGB) of it, averaged over "
-                   "the layers (end layers have fewer neighbours, so c < 2 d_t/dz + 1). It depends on the profile "
-                   "and the object's depth, which the paper gives only as \"ten times smaller\": our 4 mm and 40 mm "
-                   "bunnies are our choice, and wholemilk's blue channel, with the longest reach relative to its "
-                   "R_d(0), sets d_t. "
-                   + ("With t = 0 every pair is kept: c = " + ", ".join(f"{c:.2f}" for c in full)
-                      + " (the paper's 8 minus the end-layer effect)." if full else ""))
-        if fig2["small_mre"] is not None:
-            out.append("- **Fig. 2, image change with t** (small bunny, err vs exact at t = 0, 0.1 %, 5 %): "
-                       + ", ".join(_pct(e) for e in fig2["small_mre"])
-                       + ". The paper sees \"almost identical\" results at 0.1 % and a noticeable difference at 5 %.")
-    fig5 = n.get("fig5")
-    if fig5:
-        layers, ratio, mre = fig5["layers"], fig5["ratio"], fig5["mre"]
-        ratios = ", ".join(f"{k} layers {x:.3f}" for k, x in zip(layers, ratio))
-        errs = ", ".join(f"{k}: {_pct(e)}" for k, e in zip(layers, mre))
-        mfp = fig5["mean_free_paths"]
-        dz_text = ", ".join(f"{k} layers dz = {d:.1f} mm" for k, d in zip(layers, fig5["dz_mm"]) if d)
-        closest, last = fig5["closest"], len(layers) - 1
-        trend = ("The per-pixel error falls monotonically with the layer count, as the paper's Fig. 5 suggests, "
-                 if fig5["monotone"] else "The per-pixel error does not fall monotonically with the layer count, "
-                 "unlike what the paper's Fig. 5 suggests, ")
-        trend += (f"but the brightness does not converge from one side: the ratio is closest to 1 at "
-                  f"{layers[closest]} layers and {layers[last]} layers are "
-                  f"{100 * (1 - ratio[last]):.0f} % darker than the exact sum. "
-                  if ratio[last] < 0.95 and closest != last else "and so does the brightness. ")
-        if ratio[0] > 1.25:
-            trend += (f"With {layers[0]} layers the image is {ratio[0]:.1f}× "
-                      "as bright as the exact sum: the paper finds \"good solutions with a very low number of "
-                      "layers\", but it tone-mapped every image on its own (the photographic operator keys on each "
-                      "image's log-average), which hides a global brightness factor; our sheets show every panel "
-                      "at the exposure of the exact sum. ")
-        out.append("- **Fig. 5, layers.** Against the exact sum, mean ratio: " + ratios + "; mean relative error "
-                   + errs + ". " + trend
-                   + "The layered scheme replaces the depth offset between a surface sample and a shaded point by a "
-                   "multiple of the layer spacing (" + dz_text + "), an error of first order in dz over the mean "
-                   "free path"
-                   + (f" (the bunny spans {', '.join(f'{m:.0f}' for m in mfp)} mean free paths in R, G, B)" if mfp
-                      else "")
-                   + ". Two errors of opposite sign follow: surface at different depths inside one layer slab "
-                   "couples as if at the same depth (too bright: dominant with few, thick layers), and a sample "
-                   "split between two layers many mean free paths apart reaches the shaded point partly through "
-                   "R_d(dz), which is small (too dark: dominant with many layers until dz nears the mean free "
-                   "path). The paper judged its Fig. 5 by eye against the hierarchical method; the pixel errors "
-                   "are ours (see the error maps).")
-        if fig5["plane"]:
-            out.append("- **Fig. 5, beyond the paper.** With the plane correction of the depth discretization "
-                       "(convsss.transport.correction), against the exact sum: " + ", ".join(
-                           f"{p['layers']} layers: ratio {p['ratio']:.3f}, mean relative error {_pct(p['mre'])}"
-                           for p in fig5["plane"]) + ".")
+    if n.get("fig2"):
+        out += _fig2_lines(n["fig2"])
+    if n.get("fig5"):
+        out += _fig5_lines(n["fig5"])
     pt = n.get("exact_vs_pt")
     if pt:
         out.append("- **The dipole against path tracing.** The exact dipole sum against volpathmis of the same scene: "
