@@ -159,7 +159,7 @@ class Forward:
         as the medium holds it: a grey one takes the channels' mean) and weighed by ``material``."""
         import mitsuba as mi
 
-        from .pipeline.objects import phase_g
+        from .pipeline.interiors import phase_g
         from .scene.materials import medium_parameters
 
         medium = self.obj.shape.interior_medium()

@@ -156,7 +156,7 @@ def reference_to_files(source, output, *, spp=None, sensor=None, seed=0, pass_sp
     """
     from .backend import load_mitsuba
     from .image import exr_writer, png_writer
-    from .pipeline.objects import check_surfaces
+    from .pipeline.checks import check_surfaces
     from .pipeline.reference import BlackPassWarning, render_reference
 
     start = time.perf_counter()

@@ -305,7 +305,7 @@ def test_open_disk_and_non_reflecting_channel_render_without_stray_warnings(mi, 
     with its two warnings (optically thin, and under one mean free path across at 4 mm) and no numpy division
     warnings."""
     from convsss.materials import OpticallyThinWarning
-    from convsss.pipeline.objects import MeshWarning, UnitsWarning
+    from convsss.pipeline.checks import MeshWarning, UnitsWarning
     from convsss.scene.materials import translucent
 
     disk = sphere_scene()
@@ -406,7 +406,7 @@ def test_mi_traverse_exposes_and_sets_the_numeric_parameters(mi, sphere_scene):
 def test_a_translucent_rectangle_renders(mi, sphere_scene):
     """Issue 30: a rectangle is a mesh without vertex positions to Mitsuba; its samples failed with a KeyError. It
     renders (an open surface, with its warning)."""
-    from convsss.pipeline.objects import MeshWarning
+    from convsss.pipeline.checks import MeshWarning
     from convsss.scene.materials import translucent
 
     scene_dict = sphere_scene(res=16, spp=1)

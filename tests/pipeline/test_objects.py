@@ -5,7 +5,8 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
-from convsss.pipeline.objects import MeshWarning, UnitsWarning, find_translucent_objects
+from convsss.pipeline.checks import MeshWarning, UnitsWarning
+from convsss.pipeline.objects import find_translucent_objects
 from convsss.scene.materials import translucent
 
 
@@ -150,7 +151,7 @@ def test_scaled_instance_has_the_ellipsoids_area_and_outward_normals(mi):
 
 
 def test_unknown_instance_description_is_a_clear_error():
-    from convsss.pipeline.objects import shapegroup_id
+    from convsss.pipeline.traversal import shapegroup_id
 
     class Described:
         def id(self):
@@ -266,7 +267,7 @@ def test_an_object_at_infinity_is_refused_without_numpy_warnings(mi, scale):
 
 def test_overlapping_objects_warn_and_touching_ones_do_not(mi):
     """Issue 51: overlapping translucent objects were neither refused nor warned (0.78 of path tracing)."""
-    from convsss.pipeline.objects import OverlapWarning
+    from convsss.pipeline.checks import OverlapWarning
 
     skin = convsss.material("skin1")
     T = mi.ScalarTransform4f

@@ -140,7 +140,7 @@ def test_a_mesh_wound_inward_is_turned_outward_for_the_render_and_the_path_trace
     """The bunny wound inward behind a dielectric renders as the bunny wound outward, bit for bit, in convsss and in
     volpathmis, with one warning (before, 1.11 of it in convsss and 0.68-0.81 in volpathmis on a sphere)."""
     import convsss
-    from convsss.pipeline.objects import mesh_topology
+    from convsss.pipeline.checks import mesh_topology
     from convsss.pipeline.reference import render_reference
     from convsss.scene.materials import translucent
 

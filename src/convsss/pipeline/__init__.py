@@ -2,7 +2,9 @@
 (docs/architecture.md, the data flow; the stages in order: :data:`STAGES`, run by :mod:`.session`).
 
 - :mod:`.params`: the integrator's parameters, checked;
-- :mod:`.objects`: translucent objects found in a loaded scene; :mod:`.media`: heterogeneous interiors as classes;
+- :mod:`.objects`: translucent objects found in a loaded scene; :mod:`.traversal`: the scene's shapes (plain and
+  instanced) and where they lie; :mod:`.interiors`: a shape's boundary and medium read as a material;
+  :mod:`.checks`: what is warned of or refused in them; :mod:`.media`: heterogeneous interiors as classes;
 - :mod:`.camera`: the camera's frame, a pixel's footprint and what it sees;
 - :mod:`.plan`: the sampling plan (cells, sample counts, memory and time), refused before any work;
 - :mod:`.surface`: points on a shape's surface (stratified, Morton-ordered faces);

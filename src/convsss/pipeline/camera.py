@@ -15,7 +15,7 @@ import numpy as np
 from ..backend import aligned, load_mitsuba, to_numpy3
 from ..errors import ConvsssError
 from ..samples import ViewFrame
-from .objects import hit_indices
+from .traversal import hit_indices
 
 mi = load_mitsuba()
 

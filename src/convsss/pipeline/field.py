@@ -35,7 +35,7 @@ import numpy as np
 import scipy.ndimage
 
 from ..backend import load_mitsuba, to_numpy3
-from .objects import phase_g
+from .interiors import phase_g
 
 mi = load_mitsuba()
 

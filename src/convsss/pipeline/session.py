@@ -37,10 +37,11 @@ from ..fresnel import same_eta
 from ..timing import StageTimer
 from .aovs import FirstHitAOVs
 from .camera import check_camera, first_hits, sensor_frame
+from .checks import check_lights_outside
 from .field import diffusion_field
 from .irradiance import keeps_irradiance
 from .lighting import light_samples
-from .objects import check_lights_outside, find_translucent_objects
+from .objects import find_translucent_objects
 from .params import (
     IgnoredParameterWarning,
     RenderMode,

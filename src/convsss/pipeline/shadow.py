@@ -24,7 +24,8 @@ on through the rest of the mesh is what made the irradiance stage 20 times slowe
 import drjit as dr
 
 from ..backend import load_mitsuba
-from .objects import hit_indices, phase_g
+from .interiors import phase_g
+from .traversal import hit_indices
 
 mi = load_mitsuba()
 

@@ -17,8 +17,8 @@ import numpy as np
 
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
+from ..pipeline.checks import MeshWarning, check_named_media, mesh_topology
 from ..pipeline.integrator import register
-from ..pipeline.objects import MeshWarning, check_named_media, mesh_topology
 from .meshfiles import check_mesh_file
 from .presets import any_textured_media, equivalents
 from .textures import equivalent_media
@@ -239,7 +239,7 @@ def order_vertex_normals(mi, scene):
 
 def wind_outward(mi, scene):
     """Turn outward, with a warning, each mesh around a medium whose faces wind around inward normals (a negative
-    signed volume, :func:`~convsss.pipeline.objects.mesh_topology`), as Mitsuba's ``flip_normals`` would have at
+    signed volume, :func:`~convsss.pipeline.checks.mesh_topology`), as Mitsuba's ``flip_normals`` would have at
     load: Mitsuba puts a shape's interior medium, and a dielectric's inside, on the side its normals point away
     from, so an inward mesh is rendered inside out, by the path tracer too (a 10 mm sphere of albedo 0.9-0.99 behind
     a dielectric under an area light: 1.11-1.13 of the outward mesh in ``convsss render``, 0.68-0.81 in

@@ -26,8 +26,8 @@ is read from the grid by trilinear interpolation.
 import numpy as np
 
 from ..errors import ConvsssError
-from ..pipeline.objects import scene_surfaces, world_bbox
 from ..pipeline.surface import surface_square
+from ..pipeline.traversal import scene_surfaces, world_bbox
 from ..profiles.models import albedos_from_reflectances
 from .materials import medium_parameters
 from .presets import forget, named_medium_of, texture_values
