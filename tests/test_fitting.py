@@ -122,7 +122,8 @@ def test_the_walks_boundary_takes_each_material_s_index_back_to_the_scene_s(mi):
     """A walked evaluation at the scene's own index after one at another gives the boundary's BSDF the scene's back
     (it kept the other one, as the walk's objects keep the scene's index: _initial_eta's candidate at the scene's
     index rendered the BSDF at the one before)."""
-    from convsss.fitting import NO_ROULETTE, Forward
+    from convsss.fitting import NO_ROULETTE
+    from convsss.forward import Forward
     from convsss.scene.quick import demo_mesh, quick_scene
 
     skin = convsss.material("skin1")
@@ -197,7 +198,7 @@ def test_the_forward_model_moves_smoothly_with_the_mean_free_path(mi):
     evaluation draws the paths' choices with the scene's sigma_t' (``TranslucentObject.sampling``). Measured 0.0012
     on this 24² skin1 bunny behind eta 1.4; 0.36 when traced single scattering drew its distances by the material
     tried."""
-    from convsss.fitting import Forward
+    from convsss.forward import Forward
     from convsss.scene.quick import demo_mesh, quick_scene
 
     skin = convsss.material("skin1")

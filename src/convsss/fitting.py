@@ -10,10 +10,10 @@ and channel is ``(s I - T) / (T + f)``, ``f`` 1 % of the target's channel mean, 
 shared by the channels; it moves the material's ``eta`` (the light's entry and exit, Eqs. 1-2) and the boundary
 BSDF's (its reflection, the highlight) together.
 
-The forward model (:class:`Forward`) is the default render's: where that walks (``walk_depth`` inf, or ``auto`` on
-an object where diffusion fails, :func:`~convsss.pipeline.params.render_mode`, decided once by the scene's
-material) the random walk's, else the transport's. Each walk draws its paths by its own material (the same seed),
-and the Jacobian's renders keep those paths and only weigh them by the moved material
+The forward model (:class:`~convsss.forward.Forward`) is the default render's: where that walks (``walk_depth`` inf,
+or ``auto`` on an object where diffusion fails, :func:`~convsss.pipeline.params.render_mode`, decided once by the
+scene's material) the random walk's, else the transport's. Each walk draws its paths by its own material (the same
+seed), and the Jacobian's renders keep those paths and only weigh them by the moved material
 (:attr:`~convsss.pipeline.walk.RandomWalk.evaluated`; without Russian roulette, whose choices would move with it),
 so that its differences are smooth, each channel's with its own coefficients only. (Paths drawn by one material for
 a whole least-squares run, as the transport's choices are, weigh too far from it: a long walk's weight is a product
@@ -28,10 +28,10 @@ material (the distance of traced single scattering, Eq. S2; whether a path cross
 with one material for a whole least-squares run, the scene's at first (``TranslucentObject.sampling``; the estimate
 is each trial material's), so the image moves smoothly with the material instead of in small jumps
 (docs/guide/fit.md); a fit that ends far from the scene's material is made again with samples sized by the fitted
-one (:data:`REPLAN_FACTOR`, :meth:`Forward.replan`). The channels are rendered independently, so one evaluation with
-every channel's ``alpha'`` moved gives the Jacobian's ``alpha'`` columns of all three (and one more its ``mfp``
-columns): two evaluations per Jacobian instead of six. Uncertainties come from the Jacobian at the solution, ``cov =
-s^2 (J^T J)^-1`` with ``s^2`` the residuals' variance.
+one (:data:`REPLAN_FACTOR`, :meth:`~convsss.forward.Forward.replan`). The channels are rendered independently, so
+one evaluation with every channel's ``alpha'`` moved gives the Jacobian's ``alpha'`` columns of all three (and one
+more its ``mfp`` columns): two evaluations per Jacobian instead of six. Uncertainties come from the Jacobian at the
+solution, ``cov = s^2 (J^T J)^-1`` with ``s^2`` the residuals' variance.
 """
 
 import dataclasses
@@ -41,6 +41,7 @@ import time
 import numpy as np
 
 from .errors import ConvsssError
+from .forward import Forward, medium_values, restore_medium, set_boundary_eta
 
 #: Bounds of the fit: reduced albedo, reduced mean free path (mm) and the boundary's relative index.
 ALBEDO_BOUNDS = (1e-3, 0.9999)
@@ -52,7 +53,7 @@ MFP_START_FACTORS = (1.0 / 9.0, 1.0 / 3.0, 1.0, 3.0, 9.0)
 ETA_START_VALUES = (1.2, 1.3, 1.4, 1.5, 1.6)
 #: A fit that ends with a mean free path this factor or more from the one its samples were sized by (the scene's
 #: material's, in a channel) is made again from there, its samples sized by the fitted material
-#: (:meth:`Forward.replan`).
+#: (:meth:`~convsss.forward.Forward.replan`).
 REPLAN_FACTOR = 1.1
 #: At most this many fits made again so.
 MAX_REPLANS = 3
@@ -112,87 +113,6 @@ def material_of(albedo, mfp_mm, eta, name="fitted"):
 
     albedo, sigma_t = np.asarray(albedo, dtype=np.float64), 1.0 / np.asarray(mfp_mm, dtype=np.float64)
     return Material(albedo * sigma_t, (1.0 - albedo) * sigma_t, eta, name)
-
-
-class Forward:
-    """The render of ``scene`` through ``sensor`` with object ``index``'s material set, (H, W, 3) float64.
-
-    ``integrator`` is a ``convsss`` integrator; ``seed`` and ``spp`` fixed for every evaluation; ``walks``: its
-    renders are random walks (each drawn by its own material, or one it is given), else the transport's.
-    See the module docstring for what each evaluation reuses; ``evaluations`` and ``seconds`` count them."""
-
-    def __init__(self, scene, integrator, sensor, index, seed=0, spp=4, walks=False):
-        self.scene, self.integrator, self.sensor, self.index = scene, integrator, sensor, index
-        self.seed, self.spp, self.walks = seed, spp, walks
-        self.evaluations, self.seconds = 0, 0.0
-        #: The index the boundary's BSDF has now (None: the scene's).
-        self._eta = None
-        #: The material the next evaluation sizes the samples by and draws the paths with (:meth:`replan`).
-        self._replan = None
-
-    def replan(self, material):
-        """From the next evaluation on, the samples are sized by ``material``'s profile (the scene's sized them) and
-        the paths' choices drawn with its sigma_t' (``TranslucentObject.sampling``)."""
-        self._replan = material
-
-    @property
-    def obj(self):
-        return self.integrator.prepared.objects[self.index]
-
-    def __call__(self, material, drawn=None):
-        """The render of ``material``; with walks, their paths drawn by ``drawn`` (default: ``material`` itself), so
-        that renders of materials near ``drawn`` differ smoothly (the Jacobian's)."""
-        start = time.perf_counter()
-        if material.eta != (self._eta or self.obj.eta):
-            _set_boundary_eta(self.obj.shape, material.eta)
-            self._eta = material.eta
-        if self.walks:
-            image = self._walked(material, drawn or material)
-        else:
-            image = self._transported(material)
-        self.evaluations += 1
-        self.seconds += time.perf_counter() - start
-        return image
-
-    def _walked(self, material, drawn):
-        """The random walk's render of ``material``, its paths drawn by the object's medium set to ``drawn`` (as near
-        as the medium holds it: a grey one takes the channels' mean) and weighed by ``material``."""
-        import mitsuba as mi
-
-        from .pipeline.interiors import phase_g
-        from .scene.materials import medium_parameters
-
-        medium = self.obj.shape.interior_medium()
-        params = mi.traverse(medium)
-        g, unit_mm = phase_g(params), self.integrator.params.unit_mm
-        _set_medium(params, medium_parameters(unreduced(drawn, g), unit_mm))
-        weighed = unreduced(material, g)
-        sigma_t, sigma_s = (mi.Color3f(*(c * unit_mm).tolist()) for c in (weighed.sigma_t_prime, weighed.sigma_s_prime))
-        self.integrator.walk.weigh(medium, sigma_t, sigma_s)
-        return np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
-
-    def _transported(self, material):
-        """The transport's render of ``material`` (the module doc's reuse)."""
-        from .profiles.models import is_model, parse_profile_spec, resolve_profile
-
-        p = self.integrator.params
-        default, per_object = parse_profile_spec(p.profile)
-        spec = per_object.get(self.obj.name, per_object.get(self.obj.name.split("/")[0], default))
-        if not is_model(spec):
-            raise ConvsssError(f"translucent shape {self.obj.name!r} renders with the tabulated profile {spec!r}: "
-                               "a fit needs a profile model (the integrator's profile parameter)")
-        # The paths' choices drawn with one material for every evaluation (the scene's, until replan), so that
-        # they do not move with the material tried.
-        sampling = self._replan or self.obj.sampling or self.obj.material
-        objects = list(self.integrator.prepared.objects)
-        trial = self.obj.with_material(material, resolve_profile(spec, material, p.profile_total, p.orders))
-        objects[self.index] = dataclasses.replace(trial, sampling=sampling)
-        # The same samples, their irradiance drawn again: it depends on the reduced albedo (the entry gain) and on
-        # sigma_t' too, through the indirect paths that cross the object's thin parts (Eq. S3), so retransport,
-        # which keeps it, would leave the image a little off the material.
-        self.integrator.reprepare(objects, replan=self._replan is not None)
-        self._replan = None
-        return np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
 
 
 class _Variables:
@@ -316,7 +236,7 @@ class _Problem:
 
     def replan(self, albedo, mfp, eta):
         """The samples sized, and the paths' choices drawn, by this material from the next render on
-        (:meth:`Forward.replan`); the renders kept are of the old plan, so forgotten."""
+        (:meth:`~convsss.forward.Forward.replan`); the renders kept are of the old plan, so forgotten."""
         self.forward.replan(material_of(albedo, mfp, eta, self.base.name))
         self.cache.clear()
 
@@ -400,14 +320,44 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     progress : callable, optional
         ``progress(evaluation, cost)`` after each evaluation.
     """
-    from .pipeline.integrator import ConvsssIntegrator, register
-    from .pipeline.objects import find_translucent_objects
-    from .pipeline.params import RenderParams, render_mode
+    from .pipeline.integrator import register
 
     mi = register()
     sensor = scene.sensors()[0]
     width, height = (int(n) for n in sensor.film().crop_size())
     target, mask = _checked_images(target, mask, width, height)
+    forward = _forward_model(mi, scene, sensor, object, fit_eta, seed, spp)
+    inside = _pixels_to_fit(forward, target, mask, (height, width))
+    base = forward.obj.material
+    start = base if start is None else start
+    eta0 = float(np.clip(start.eta, *ETA_BOUNDS)) if fit_eta else base.eta
+    albedo0 = np.clip(start.albedo_prime, *ALBEDO_BOUNDS)
+    mfp0 = np.clip(start.mfp_mm, *MFP_BOUNDS_MM)
+    block = WALK_BLOCK if forward.walks else 1
+    problem = _Problem(forward, base, inside, target, fit_exposure, fit_eta, progress, block)
+    begun = time.perf_counter()
+    held = medium_values(forward.obj.shape.interior_medium()) if forward.walks else {}
+    try:
+        solution = _solve(problem, albedo0, mfp0, eta0, max_evaluations)
+        albedo, mfp, _, eta = problem.split(solution.x)
+        image = problem.render(albedo, mfp, eta)
+    finally:
+        if fit_eta:
+            set_boundary_eta(forward.obj.shape, base.eta)
+        if held:
+            restore_medium(forward.obj.shape.interior_medium(), held)
+    return _result(problem, solution, image, begun)
+
+
+def _forward_model(mi, scene, sensor, object, fit_eta, seed, spp):
+    """The :class:`~convsss.forward.Forward` of the object to fit (``object``, or the only one: :func:`_object_to_fit`)
+    through ``sensor``, its integrator prepared: the default render's forward model (module doc), walks where it walks
+    to the end, else the transport's; ``spp`` by default :data:`WALK_SPP` or :data:`TRANSPORT_SPP`. A one-line error
+    where the camera does not see the object."""
+    from .pipeline.integrator import ConvsssIntegrator
+    from .pipeline.objects import find_translucent_objects
+    from .pipeline.params import RenderParams, render_mode
+
     named = scene.integrator()
     params = named.params.to_dict() if isinstance(named, ConvsssIntegrator) else {}
     asked = RenderParams(**params)
@@ -425,49 +375,56 @@ def fit(scene, target, object=None, mask=None, start=None, fit_exposure=False, f
     if name not in names:
         raise ConvsssError(f"the camera does not see translucent object {name!r}: nothing to fit")
     forward.index = names.index(name)
-    objects = integrator.prepared.objects
-    seen = _object_mask(integrator, forward.index, (height, width))
+    return forward
+
+
+def _pixels_to_fit(forward, target, mask, shape):
+    """The pixels to match, (H, W) bool: ``mask``, or where the camera sees the object of ``forward`` first; one-line
+    errors for a mask off the object and a target black over the pixels."""
+    name = forward.obj.name
+    seen = _object_mask(forward.integrator, forward.index, shape)
     if mask is not None and not (mask & seen).any():
         raise ConvsssError(f"the mask holds none of the pixels where the camera sees {name!r}: nothing to fit")
     inside = seen if mask is None else mask
     if not np.any(target[inside] > 0):
         raise ConvsssError(f"the target is black where the camera sees {name!r}: nothing to fit (is it a linear "
                            "render of this scene?)")
-    base = objects[forward.index].material
-    start = base if start is None else start
-    eta0 = float(np.clip(start.eta, *ETA_BOUNDS)) if fit_eta else base.eta
-    albedo0 = np.clip(start.albedo_prime, *ALBEDO_BOUNDS)
-    mfp0 = np.clip(start.mfp_mm, *MFP_BOUNDS_MM)
-    problem = _Problem(forward, base, inside, target, fit_exposure, fit_eta, progress, WALK_BLOCK if walks else 1)
-    begun = time.perf_counter()
-    held = _medium_values(forward.obj.shape.interior_medium()) if walks else {}
-    try:
-        mfp0 = _initial_mfp(eta0, albedo0, mfp0, problem)
-        if fit_eta:
-            eta0 = _initial_eta(eta0, albedo0, mfp0, problem)
-        solution = problem.solve(problem.start(albedo0, mfp0, eta0), max_evaluations)
-        albedo, mfp, scale, eta = problem.split(solution.x)
-        planned = base.mfp_mm
-        for _ in range(0 if walks else MAX_REPLANS):  # walks draw each render's paths by its own material
-            # The scene's material sized the samples (their spacing follows its profile) and drew the paths'
-            # choices; far from it, the fit is made again from where it ended, with both the fitted material's.
-            if not np.any(np.abs(np.log(mfp / planned)) > np.log(REPLAN_FACTOR)):
-                break
-            planned = mfp
-            problem.replan(albedo, mfp, eta)
-            solution = problem.solve(solution.x, max_evaluations)
-            albedo, mfp, scale, eta = problem.split(solution.x)
-        image = problem.render(albedo, mfp, eta)
-    finally:
-        if fit_eta:
-            _set_boundary_eta(forward.obj.shape, base.eta)
-        if held:
-            _restore(forward.obj.shape.interior_medium(), held)
+    return inside
+
+
+def _solve(problem, albedo0, mfp0, eta0, max_evaluations):
+    """The least squares' solution (SciPy's) from the start ``albedo0``, ``mfp0``, ``eta0``, its mean free paths (and
+    with ``fit_eta`` its index) first chosen by the scans of :func:`_initial_mfp` and :func:`_initial_eta`; solved
+    again from where it ended, its samples sized by the fitted material, while that is :data:`REPLAN_FACTOR` or more
+    from the one that sized them (at most :data:`MAX_REPLANS` times; never for walks)."""
+    mfp0 = _initial_mfp(eta0, albedo0, mfp0, problem)
+    if problem.fit_eta:
+        eta0 = _initial_eta(eta0, albedo0, mfp0, problem)
+    solution = problem.solve(problem.start(albedo0, mfp0, eta0), max_evaluations)
+    albedo, mfp, _, eta = problem.split(solution.x)
+    planned = problem.base.mfp_mm
+    for _ in range(0 if problem.forward.walks else MAX_REPLANS):  # walks draw each render's paths by its own material
+        # The scene's material sized the samples (their spacing follows its profile) and drew the paths'
+        # choices; far from it, the fit is made again from where it ended, with both the fitted material's.
+        if not np.any(np.abs(np.log(mfp / planned)) > np.log(REPLAN_FACTOR)):
+            break
+        planned = mfp
+        problem.replan(albedo, mfp, eta)
+        solution = problem.solve(solution.x, max_evaluations)
+        albedo, mfp, _, eta = problem.split(solution.x)
+    return solution
+
+
+def _result(problem, solution, image, begun):
+    """The :class:`FitResult` of ``solution``, ``image`` its render at exposure 1, the fit begun at ``begun``
+    (``time.perf_counter``)."""
+    albedo, mfp, scale, eta = problem.split(solution.x)
+    forward, base, fit_eta = problem.forward, problem.base, problem.fit_eta
     variables, eta_at, history = problem.variables, problem.eta_at, problem.history
     std = _deviations(solution, variables, albedo, mfp)
     eta_std = float(std[2][eta_at] * (eta - 1.0)) if fit_eta else float("nan")
     return FitResult(material_of(albedo, mfp, eta, base.name), albedo, std[0], mfp, std[1], eta_std, scale,
-                     scale * image, inside, history, forward.evaluations, time.perf_counter() - begun,
+                     scale * image, problem.inside, history, forward.evaluations, time.perf_counter() - begun,
                      bool(solution.success), str(solution.message))
 
 
@@ -518,55 +475,6 @@ def _deviations(solution, variables, albedo, mfp):
     slope = np.abs(variables.decode(moved)[0] - albedo) / STEP
     return sd[:3] * slope, sd[3:6] * mfp, sd
 
-
-def unreduced(material, g):
-    """``material``'s coefficients under a phase function of mean cosine ``g``, as the :class:`~convsss.materials.
-    Material` of an isotropic one (``sigma_s = sigma_s' / (1 - g)``, the similarity relation; ``sigma_a`` as it is):
-    what a Mitsuba medium of that phase function holds."""
-    from .materials import Material
-
-    return Material(material.sigma_s_prime / (1.0 - g), material.sigma_a, material.eta, material.name)
-
-
-def _set_medium(params, coefficients):
-    """Give a Mitsuba homogeneous medium (its traversed ``params``) the ``coefficients`` of
-    :func:`~convsss.scene.materials.medium_parameters`; a grey coefficient (one value) the channels' mean."""
-    import mitsuba as mi
-
-    params["scale"] = coefficients["scale"]
-    for name in ("sigma_t", "albedo"):
-        value = coefficients[name]
-        key = f"{name}.value.value" if f"{name}.value.value" in params else f"{name}.value"
-        held = params[key]
-        params[key] = type(held)(*value.tolist()) if isinstance(held, mi.Color3f) else type(held)(float(np.mean(value)))
-    params.update()
-
-
-def _medium_values(medium):
-    """A copy of a Mitsuba medium's traversed values (:func:`_restore` gives them back)."""
-    import mitsuba as mi
-
-    params = mi.traverse(medium)
-    return {key: type(params[key])(params[key]) for key in params.keys()}
-
-
-def _restore(medium, values):
-    """Give a Mitsuba medium back the ``values`` of :func:`_medium_values`."""
-    import mitsuba as mi
-
-    params = mi.traverse(medium)
-    for key, value in values.items():
-        params[key] = value
-    params.update()
-
-
-def _set_boundary_eta(shape, eta):
-    """Give ``shape``'s boundary BSDF (a dielectric or rough dielectric) the relative index ``eta``."""
-    import mitsuba as mi
-
-    params = mi.traverse(shape)
-    params["bsdf.eta"] = eta
-    params.update()
 
 
 def _object_mask(integrator, index, shape):
