@@ -151,7 +151,7 @@ def test_render_with_the_mesh_table_matches_the_transport(mi, sphere_scene, tmp_
     """A 4 mm wholemilk icosphere (5 k faces) on a floor at 16 spp: the floor's view of it and the indirect paths
     that come back to it read the table (measured: 3.5 k transport queries against 6.3 k without); the same render
     with the transport alone agrees within 0.1 % over the object and the floor."""
-    import convsss.pipeline.path_tracer as path_tracer
+    import convsss.pipeline.lookups as lookups_module
 
     vertex, face = icosphere(4, radius=2.0)
     path = tmp_path / "ico.obj"
@@ -164,11 +164,11 @@ def test_render_with_the_mesh_table_matches_the_transport(mi, sphere_scene, tmp_
     with_table = np.asarray(mi.render(scene, seed=1))
     lookups = scene.integrator().stats["exitance_lookups"]
 
-    class Bypassed(path_tracer.MeshExitance):
+    class Bypassed(lookups_module.MeshExitance):
         def __call__(self, faces, points, normals):
             return self.exitance(points, normals)
 
-    monkeypatch.setattr(path_tracer, "MeshExitance", Bypassed)
+    monkeypatch.setattr(lookups_module, "MeshExitance", Bypassed)
     without = np.asarray(mi.render(scene, seed=1))
     assert scene.integrator().stats["exitance_lookups"] > lookups
     mask = without.sum(axis=2) > 0
