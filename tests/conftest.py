@@ -3,7 +3,7 @@
 import pytest
 
 import convsss
-from convsss.scene.materials import translucent
+from convsss.media.dicts import translucent
 
 
 @pytest.fixture(scope="session")

@@ -57,8 +57,8 @@ class Forward:
         as the medium holds it: a grey one takes the channels' mean) and weighed by ``material``."""
         import mitsuba as mi
 
+        from .media.dicts import medium_parameters
         from .pipeline.interiors import phase_g
-        from .scene.materials import medium_parameters
 
         medium = self.obj.shape.interior_medium()
         params = mi.traverse(medium)
@@ -104,7 +104,7 @@ def unreduced(material, g):
 
 def _set_medium(params, coefficients):
     """Give a Mitsuba homogeneous medium (its traversed ``params``) the ``coefficients`` of
-    :func:`~convsss.scene.materials.medium_parameters`; a grey coefficient (one value) the channels' mean."""
+    :func:`~convsss.media.dicts.medium_parameters`; a grey coefficient (one value) the channels' mean."""
     import mitsuba as mi
 
     params["scale"] = coefficients["scale"]

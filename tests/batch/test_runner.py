@@ -14,7 +14,10 @@ from click.testing import CliRunner
 from convsss.batch import batch_from_spec, contact_sheet, run_batch, run_job, turntables
 from convsss.batch.spec import keywords
 from convsss.cli import cli
+from convsss.cli.batch import command_parsers
 from convsss.image import read_image
+
+PARSERS = command_parsers()
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers run this module's job functions
 
@@ -28,12 +31,12 @@ def _quiet(text):
 
 @pytest.mark.slow
 def test_a_sweep_renders_the_single_renders_and_a_second_run_skips_them(tmp_path):
-    batch = batch_from_spec(SPEC)
+    batch = batch_from_spec(SPEC, PARSERS)
     records = run_batch(batch, tmp_path / "out", workers=2, echo=_quiet, progress=False)
     assert [records[j.id]["status"] for j in batch.jobs] == ["done"] * 4
     assert len({records[j.id]["worker_pid"] for j in batch.jobs}) == 2  # both workers rendered
     for job in batch.jobs:  # the same command in this process: the same image, bit for bit
-        single = run_job(batch.command, job.id, keywords(batch.command, job.options), tmp_path / "single" / job.id)
+        single = run_job(batch.command, job.id, keywords(batch.parser, job.options), tmp_path / "single" / job.id)
         assert np.array_equal(read_image(single["outputs"]["exr"]), read_image(records[job.id]["outputs"]["exr"]))
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert [row["status"] for row in manifest["jobs"]] == ["done"] * 4
@@ -58,7 +61,8 @@ def _dies_once_then_runs(command, job_id, keywords, folder):
 
 @pytest.mark.slow
 def test_a_killed_worker_is_retried_and_a_failing_job_is_marked_failed(tmp_path, capfd):
-    batch = batch_from_spec({"scene": {**SPEC["scene"], "material": "marble"}, "axes": {"orbit_deg": [0, 120, 240]}})
+    batch = batch_from_spec({"scene": {**SPEC["scene"], "material": "marble"}, "axes": {"orbit_deg": [0, 120, 240]}},
+                            PARSERS)
     records = run_batch(batch, tmp_path, workers=2, job_function=_dies_once_then_runs, echo=_quiet, progress=False)
     assert "Compute Failed" not in capfd.readouterr().err  # the failure is the manifest's line, not Dask's log
     first, second, third = (records[j.id] for j in batch.jobs)
@@ -142,7 +146,7 @@ def test_jobs_go_to_a_running_scheduler(tmp_path):
     from distributed import LocalCluster
 
     batch = batch_from_spec({"scene": {**SPEC["scene"], "material": "skin1", "width": 16, "height": 16},
-                             "axes": {"seed": [1, 2]}})
+                             "axes": {"seed": [1, 2]}}, PARSERS)
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         records = run_batch(batch, tmp_path, scheduler=cluster.scheduler_address, echo=_quiet, progress=False)
         assert [records[j.id]["status"] for j in batch.jobs] == ["done", "done"]
@@ -186,10 +190,10 @@ def test_a_jobs_warnings_go_to_its_record_not_the_workers_stderr(tmp_path):
 
     from convsss.batch.spec import keywords
 
-    batch = batch_from_spec({"scene": {**SPEC["scene"], "material": "ketchup", "width": 8, "height": 8}})
+    batch = batch_from_spec({"scene": {**SPEC["scene"], "material": "ketchup", "width": 8, "height": 8}}, PARSERS)
     job = batch.jobs[0]
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # none escapes the job
-        record = run_job(batch.command, job.id, keywords(batch.command, job.options), tmp_path / job.id)
+        record = run_job(batch.command, job.id, keywords(batch.parser, job.options), tmp_path / job.id)
     assert any("not optically thick" in w for w in record["warnings"])
     assert all("\n" not in w for w in record["warnings"])

@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 import convsss
 from convsss.bench.battery import battery_table, bench_battery, matrix, pairwise, render_tiny, tiny_scene
 from convsss.bench.lights import EMITTERS, write_envmap
+from convsss.media.dicts import BOUNDARIES
 from convsss.pipeline.params import SPECULARS, RenderParams, available_transports
-from convsss.scene.materials import BOUNDARIES
 from convsss.transport.convolution import DOWNSAMPLES, SPLATS
 
 

@@ -63,9 +63,9 @@ def test_the_fluence_deep_inside_is_what_walks_from_there_find(mi, material):
     import drjit as dr
 
     import convsss
+    from convsss.media.dicts import translucent
     from convsss.pipeline.params import RenderMode
     from convsss.pipeline.walk import RandomWalk
-    from convsss.scene.materials import translucent
 
     radius, T = 10.0, mi.ScalarTransform4f
     scene = mi.load_dict({"type": "scene", "environment": {"type": "constant"},

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import convsss
-from convsss.scene.materials import translucent
+from convsss.media.dicts import translucent
 
 
 @pytest.fixture(scope="module")

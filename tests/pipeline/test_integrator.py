@@ -213,7 +213,7 @@ def test_cancelled_render_raises_instead_of_returning_a_partial_image(mi, sphere
 
 def _bar(mi, x, z_centre, length, material="wholemilk"):
     """A translucent bar along the view axis (z), 1 mm thick, centred at (x, 4, z_centre)."""
-    from convsss.scene.materials import translucent
+    from convsss.media.dicts import translucent
 
     to_world = mi.ScalarTransform4f().translate([x, 4.0, z_centre]).scale([0.5, 0.5, length / 2])
     return translucent({"type": "cube", "to_world": to_world}, convsss.material(material), boundary="null")
@@ -305,8 +305,8 @@ def test_open_disk_and_non_reflecting_channel_render_without_stray_warnings(mi, 
     with its two warnings (optically thin, and under one mean free path across at 4 mm) and no numpy division
     warnings."""
     from convsss.materials import OpticallyThinWarning
+    from convsss.media.dicts import translucent
     from convsss.pipeline.checks import MeshWarning, UnitsWarning
-    from convsss.scene.materials import translucent
 
     disk = sphere_scene()
     disk["object"] = translucent({"type": "disk", "to_world": mi.ScalarTransform4f().scale(2.0)},
@@ -406,8 +406,8 @@ def test_mi_traverse_exposes_and_sets_the_numeric_parameters(mi, sphere_scene):
 def test_a_translucent_rectangle_renders(mi, sphere_scene):
     """Issue 30: a rectangle is a mesh without vertex positions to Mitsuba; its samples failed with a KeyError. It
     renders (an open surface, with its warning)."""
+    from convsss.media.dicts import translucent
     from convsss.pipeline.checks import MeshWarning
-    from convsss.scene.materials import translucent
 
     scene_dict = sphere_scene(res=16, spp=1)
     scene_dict["object"] = translucent({"type": "rectangle", "to_world": mi.ScalarTransform4f().scale(2.0)},

@@ -8,8 +8,8 @@ import pytest
 import convsss
 from convsss.errors import ConvsssError
 from convsss.materials import Material
+from convsss.media.dicts import medium_parameters, translucent
 from convsss.pipeline.objects import find_translucent_objects
-from convsss.scene.materials import medium_parameters, translucent
 
 #: The spheres' radius (mm): several diffusion lengths of skin1 (at most 3.7 mm), so that the medium a surface point
 #: stands for (Eq. H2, within two diffusion lengths) lies in its half of a sphere of two halves.

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import convsss
+from convsss.media.dicts import translucent
 from convsss.pipeline.mesh_exitance import TOLERANCE, MeshExitance, usable
-from convsss.scene.materials import translucent
 
 
 def icosphere(subdivisions, radius=1.0):

@@ -5,9 +5,9 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
+from convsss.media.dicts import translucent
 from convsss.pipeline.checks import MeshWarning, UnitsWarning
 from convsss.pipeline.objects import find_translucent_objects
-from convsss.scene.materials import translucent
 
 
 def _objects(mi, shapes, unit_mm=1.0):

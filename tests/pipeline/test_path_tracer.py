@@ -37,7 +37,7 @@ def test_paths_ending_at_max_depth_return_evaluated_radiance(tmp_path):
 
     code = (
         "import convsss, numpy as np\n"
-        "from convsss.scene.materials import translucent\n"
+        "from convsss.media.dicts import translucent\n"
         "mi = convsss.register()\n"
         "T = mi.ScalarTransform4f\n"
         "scene = mi.load_dict({'type': 'scene', 'integrator': {'type': 'convsss', 'max_depth': 2},\n"
@@ -96,7 +96,7 @@ def _absorbing_sphere(mi, boundary, spp, radius=2.0):
     """A sphere of radius 2 mm that absorbs (sigma_a 0.3, 0.5, 1 /mm) and hardly scatters (sigma_s' 1e-4 /mm), under a
     constant environment of radiance 1, seen by a 32x32 camera with a box filter."""
     from convsss.materials import Material
-    from convsss.scene.materials import translucent
+    from convsss.media.dicts import translucent
 
     T = mi.ScalarTransform4f
     absorber = Material(sigma_s_prime=[1e-4] * 3, sigma_a=[0.3, 0.5, 1.0], eta=1.3)
@@ -201,7 +201,7 @@ def test_a_point_lights_shadow_ray_crosses_an_index_matched_occluder(mi):
     floor without the slab (Mitsuba's ``direct``) (issue 51: the camera paths' shadow rays had stopped at the slab,
     leaving it black)."""
     from convsss.materials import Material
-    from convsss.scene.materials import translucent
+    from convsss.media.dicts import translucent
 
     T = mi.ScalarTransform4f
     absorber = Material(sigma_s_prime=[1e-4] * 3, sigma_a=[0.3, 0.5, 1.0], eta=1.0)

@@ -5,6 +5,7 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
+from convsss.media.dicts import translucent
 from convsss.pipeline.objects import find_translucent_objects
 from convsss.profiles import (
     DEFAULT_PROFILE,
@@ -15,7 +16,6 @@ from convsss.profiles import (
     TabulatedProfile,
 )
 from convsss.profiles.models import exact_total, model_profile
-from convsss.scene.materials import translucent
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ def _transmittance(mi, scene, ray):
 
 
 def _slab(mi, material, boundary="null", thickness=0.5):
-    from convsss.scene.materials import translucent
+    from convsss.media.dicts import translucent
 
     T = mi.ScalarTransform4f
     return translucent({"type": "cube", "to_world": T().translate([0, 0, 5]).scale([3, 3, thickness / 2])}, material,
@@ -72,7 +72,7 @@ def test_a_shadow_ray_crosses_a_constant_volume_as_its_homogeneous_medium(mi, tm
     """A heterogeneous medium of constant coefficients (an albedo gridvolume, a constant extinction) lets a delta
     light's beam through as its homogeneous medium does, bit for bit: it had blocked it, so the constant marble block
     of `bench media` rendered 0.5 % of the peak away from its homogeneous twin."""
-    from convsss.scene.materials import medium_parameters
+    from convsss.media.dicts import medium_parameters
 
     skin = convsss.material("skin1")
     p = medium_parameters(skin)

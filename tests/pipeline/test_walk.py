@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import convsss
+from convsss.media.dicts import albedo_volume_dict, medium_dict, translucent
 from convsss.pipeline.path_tracer import MAX_EMITTERS_SUMMED
 from convsss.pipeline.reference import reference_integrator, translucent_pixels
-from convsss.scene.materials import albedo_volume_dict, medium_dict, translucent
 
 RES, SPP = 32, 256
 

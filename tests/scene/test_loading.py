@@ -30,8 +30,8 @@ def test_errors_are_one_line(tmp_path):
 def test_translucent_meshes_of_one_material_stay_separate_objects(mi, sphere_scene):
     """Mitsuba merges meshes sharing a BSDF and medium by default; two milk cubes must stay two objects."""
     import convsss
+    from convsss.media.dicts import translucent
     from convsss.pipeline.objects import find_translucent_objects
-    from convsss.scene.materials import translucent
 
     T = mi.ScalarTransform4f
     cubes = {name: translucent({"type": "cube", "to_world": T().translate([x, 0, 0])}, convsss.material("wholemilk"))
@@ -140,9 +140,9 @@ def test_a_mesh_wound_inward_is_turned_outward_for_the_render_and_the_path_trace
     """The bunny wound inward behind a dielectric renders as the bunny wound outward, bit for bit, in convsss and in
     volpathmis, with one warning (before, 1.11 of it in convsss and 0.68-0.81 in volpathmis on a sphere)."""
     import convsss
+    from convsss.media.dicts import translucent
     from convsss.pipeline.checks import mesh_topology
     from convsss.pipeline.reference import render_reference
-    from convsss.scene.materials import translucent
 
     bunny = load_scene({"type": "scene", "sensor": {"type": "perspective"},
                         "shape": mesh_dict(demo_mesh())}).shapes()[0]

@@ -11,12 +11,12 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
+from convsss.media.dicts import boundary_dict
+from convsss.media.named import TextureWarning, named_medium_of
 from convsss.pipeline.media import CLASS_STEP, MediumField
 from convsss.pipeline.objects import find_translucent_objects
 from convsss.profiles.models import albedo_from_reflectance
 from convsss.scene.loading import load_scene
-from convsss.scene.materials import boundary_dict
-from convsss.scene.presets import TextureWarning, named_medium_of
 
 RADIUS = 10.0
 #: The stripes' colours: u < 1/2 (the sphere's azimuth in [0, pi)) and above.

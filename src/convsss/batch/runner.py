@@ -262,7 +262,7 @@ def _run_jobs(client, batch, todo, out, records, retries, job_function, echo, pr
             echo(f"batch: {len(todo)} jobs ({len(batch.jobs) - len(todo)} complete already); Dask dashboard "
                  f"{client.dashboard_link}")
         for job in todo:
-            future = client.submit(job_function, batch.command, job.id, keywords(batch.command, job.options),
+            future = client.submit(job_function, batch.command, job.id, keywords(batch.parser, job.options),
                                    str(job_folder(out, job)), key=f"convsss-{job.id}-{time.time_ns()}", pure=False)
             futures[future] = job
             records[job.id] = {"status": "queued"}

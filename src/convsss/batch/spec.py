@@ -22,6 +22,10 @@ An option is any of the command's (``convsss render --help``: ``material``, ``co
 ``transport``, ``light_scale``, ``orbit_deg``, ``width``, ``spp``, ``seed``, every integrator parameter, ...),
 written with underscores or dashes; ``true`` is a flag. ``file`` and ``mesh`` are relative to the SPEC. The
 runner sets ``-o``, ``--stats`` and ``--progress``.
+
+The options are the command's own: a SPEC is read with the commands' parsers (``parsers``, their ``click.Command``
+by name, which :mod:`convsss.cli` gives), so a value is converted and checked as the command line would, and this
+package imports nothing of the command line.
 """
 
 import itertools
@@ -60,22 +64,18 @@ class Job:
 
 @dataclass(frozen=True)
 class Batch:
-    """A checked SPEC: the ``command`` every job runs, the ``jobs``, and the ``axes`` names swept (for sheets)."""
+    """A checked SPEC: the ``command`` every job runs and its ``parser`` (a ``click.Command``), the ``jobs``, and the
+    ``axes`` names swept (for sheets)."""
 
     command: str
-    jobs: tuple
-    axes: tuple
+    parser: object = field(compare=False, repr=False)
+    jobs: tuple = ()
+    axes: tuple = ()
 
 
-def _command(name):
-    from ..cli.main import cli
-
-    return cli.get_command(None, name)
-
-
-def option_names(command):
-    """The options a job of ``command`` may set: ``{python name: click parameter}``."""
-    return {p.name: p for p in _command(command).params if p.name not in RESERVED}
+def option_names(parser):
+    """The options a job of the command ``parser`` may set: ``{python name: click parameter}``."""
+    return {p.name: p for p in parser.params if p.name not in RESERVED}
 
 
 def _slug(value):
@@ -93,7 +93,7 @@ def _flatten(name, value):
     return dict(value) if isinstance(value, dict) else {name: value}
 
 
-def read_spec(path, max_jobs=MAX_JOBS):
+def read_spec(path, parsers, max_jobs=MAX_JOBS):
     """The :class:`Batch` of the SPEC at ``path``; a :class:`ConvsssError` listing every problem, one per line,
     before anything runs (unknown keys and options, empty axes, too many jobs, values the command refuses)."""
     try:
@@ -108,16 +108,18 @@ def read_spec(path, max_jobs=MAX_JOBS):
         raise ConvsssError(f"SPEC {str(path)!r} does not exist") from None
     except tomllib.TOMLDecodeError as error:
         raise ConvsssError(f"SPEC {str(path)!r} is not valid TOML: {error}") from None
-    return batch_from_spec(spec, path.parent, max_jobs)
+    return batch_from_spec(spec, parsers, path.parent, max_jobs)
 
 
-def batch_from_spec(spec, folder=".", max_jobs=MAX_JOBS):
-    """:func:`read_spec` of a parsed SPEC (a dict); relative scene files are taken from ``folder``."""
+def batch_from_spec(spec, parsers, folder=".", max_jobs=MAX_JOBS):
+    """:func:`read_spec` of a parsed SPEC (a dict), ``parsers`` the commands' ``click.Command`` by name; relative
+    scene files are taken from ``folder``."""
     problems = [f"unknown key {k!r} (allowed: {', '.join(TOP_KEYS)})" for k in spec if k not in TOP_KEYS]
     command = spec.get("command", "render")
     if command not in COMMANDS:
         raise SpecError([f"command {command!r} is not allowed: give one of {', '.join(COMMANDS)}"])
-    allowed = option_names(command)
+    parser = parsers[command]
+    allowed = option_names(parser)
     base = _options(spec.get("scene", {}), allowed, "[scene]", problems)
 
     axes, listed = spec.get("axes", {}), spec.get("jobs", [])
@@ -153,12 +155,12 @@ def batch_from_spec(spec, folder=".", max_jobs=MAX_JOBS):
     jobs = []
     for index, (varied, options) in enumerate(combos):
         job = Job(_job_id(index, varied), _files({**base, **options}, folder), varied)
-        problems += [f"job {job.id}: {p}" for p in check_job(command, job)]
+        problems += [f"job {job.id}: {p}" for p in check_job(parser, job)]
         jobs.append(job)
     problems += _scene_problems(jobs)
     if problems:
         raise SpecError(problems)
-    return Batch(command, tuple(jobs), tuple(axes))
+    return Batch(command, parser, tuple(jobs), tuple(axes))
 
 
 def _scene_problems(jobs):
@@ -205,9 +207,9 @@ def _options(table, allowed, where, problems):
     return out
 
 
-def arguments(command, options):
-    """The command line (a list of str, without the command's name) of a job's ``options``."""
-    allowed = option_names(command)
+def arguments(parser, options):
+    """The command line (a list of str, without the command's name) of a job's ``options`` for ``parser``."""
+    allowed = option_names(parser)
     args = [str(options["scene_file"])] if "scene_file" in options else []
     for name, value in options.items():
         if name == "scene_file":
@@ -224,20 +226,20 @@ def arguments(command, options):
     return args
 
 
-def keywords(command, options):
+def keywords(parser, options):
     """A job's ``options`` as the keyword arguments of the library function its command calls
     (:func:`~convsss.outputs.render_to_files` or :func:`~convsss.outputs.reference_to_files`, ``source`` a
     :class:`~convsss.scene.source.SceneSource`), each value converted and checked as the command's option would be."""
     from ..scene.source import FIELDS, SceneSource
 
-    params = _command(command).make_context(command, [*arguments(command, options), "-o", "x"]).params
+    params = parser.make_context(parser.name, [*arguments(parser, options), "-o", "x"]).params
     keywords = {k: v for k, v in params.items() if k not in (*FIELDS, *RESERVED)}
     if "write_mask" in keywords:
         keywords["mask"] = keywords.pop("write_mask")
     return {"source": SceneSource(**{k: params[k] for k in FIELDS}), **keywords}
 
 
-def check_job(command, job):
+def check_job(parser, job):
     """What ``command`` would refuse in ``job``'s options (one line each): values its options reject, a scene
     file that does not exist, a mesh or a material that is not there. Nothing is loaded or rendered."""
     import click
@@ -246,7 +248,7 @@ def check_job(command, job):
 
     problems = []
     try:
-        _command(command).make_context(command, [*arguments(command, job.options), "-o", "x"],
+        parser.make_context(parser.name, [*arguments(parser, job.options), "-o", "x"],
                                        resilient_parsing=False)
     except click.UsageError as error:
         problems.append(" ".join(error.format_message().split()))

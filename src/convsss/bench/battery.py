@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..media.dicts import BOUNDARIES, translucent
 from ..pipeline.params import available_transports
-from ..scene.materials import BOUNDARIES, translucent
 from .lights import EMITTERS, emitter_dict
 
 #: The tiny scene's film side in pixels.

@@ -65,7 +65,7 @@ def sphere_dict(material, boundary, emitter, radius=RADIUS_MM, resolution=32, sp
     import mitsuba as mi
 
     from ..materials import material as preset
-    from ..scene.materials import translucent
+    from ..media.dicts import translucent
 
     T = mi.ScalarTransform4f
     return {

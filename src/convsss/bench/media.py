@@ -129,7 +129,7 @@ def scene_pair(name, width, folder):
     from .. import material
     from ..backend import load_mitsuba
     from ..materials import Material
-    from ..scene.materials import medium_parameters, translucent
+    from ..media.dicts import medium_parameters, translucent
     from ..scene.quick import demo_mesh, quick_scene
 
     mi = load_mitsuba()

@@ -55,7 +55,7 @@ def batch(spec, out, workers, scheduler, retries, max_jobs, dry_run, progress):
     if scheduler:
         check_scheduler(scheduler)
     try:
-        plan = read_spec(spec, max_jobs)
+        plan = read_spec(spec, command_parsers(), max_jobs)
     except SpecError as error:
         for problem in error.problems:
             click.echo(f"error: {problem}", err=True)
@@ -77,7 +77,14 @@ def batch(spec, out, workers, scheduler, retries, max_jobs, dry_run, progress):
         raise click.exceptions.Exit(1)
 
 
+def command_parsers():
+    """The commands a batch job may run, by name: their parsers, which the SPEC's options are read with."""
+    from ..batch.spec import COMMANDS
+
+    return {name: cli.get_command(None, name) for name in COMMANDS}
+
+
 def _shown(plan, job):
     from ..batch.spec import arguments
 
-    return arguments(plan.command, job.options)
+    return arguments(plan.parser, job.options)

@@ -11,7 +11,7 @@ import click
 from ..errors import ConvsssError
 from ..image import TONEMAPS, check_tonemap
 from ..materials import DEFAULT_ETA
-from ..scene.materials import BOUNDARIES
+from ..media.dicts import BOUNDARIES
 from ..scene.quick import SPP, WIDTH
 from ..scene.source import FIELDS, SceneSource
 

@@ -165,8 +165,8 @@ def invert(color, mfp_mm, eta, color_model, unit_mm, as_json):
     sigma_s' and sigma_a (1/mm) whose total reflectance (--color-model's) is that colour, and the Mitsuba
     homogeneous medium (sigma_t, scale, albedo) that renders it.
     """
+    from ..media.dicts import medium_parameters
     from ..profiles.models import DEFAULT_COLOR_MODEL, color_of, material_from_color
-    from ..scene.materials import medium_parameters
 
     model = color_model or DEFAULT_COLOR_MODEL
     m = material_from_color(parse_triple(color, "--color"), parse_triple(mfp_mm, "--mfp-mm"), eta, model)

@@ -8,7 +8,7 @@ import click
 
 from ..errors import ConvsssError
 from ..files import check_outputs, write_text
-from ..scene.materials import BOUNDARIES
+from ..media.dicts import BOUNDARIES
 from ..scene.quick import HEIGHT, SPP, WIDTH
 from ..scene.source import source_material
 from .main import cli

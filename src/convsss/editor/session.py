@@ -326,7 +326,7 @@ class EditSession:
     def _write_scene(self, material, eta=False):
         """The edited object's medium (``sigma_t``, ``albedo``, ``scale`` per scene unit, its phase's ``g`` kept) and
         boundary ``eta`` (when it changes, or with ``eta``), in the loaded scene."""
-        from ..scene.presets import forget
+        from ..media.named import forget
 
         mi, obj = self.mi, self.target
         unit = self.integrator.params.unit_mm

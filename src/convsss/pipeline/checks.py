@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 
 from ..errors import ConvsssError
-from ..scene.presets import any_named_media, check_boundary, named_medium_of
+from ..media.named import any_named_media, check_boundary, named_medium_of
 from .interiors import boundary_eta
 from .surface import has_vertices, mesh_arrays
 from .traversal import hit_indices, scene_surfaces, shape_index
@@ -189,7 +189,7 @@ def warn_overlaps(mi, scene, objects):
 
 
 def check_named_media(mi, scene):
-    """:func:`~convsss.scene.presets.check_boundary` (without units) for every shape of ``scene`` whose interior is a
+    """:func:`~convsss.media.named.check_boundary` (without units) for every shape of ``scene`` whose interior is a
     ``convsss_medium``; what ``convsss reference`` and :func:`~convsss.scene.loading.load_scene` check."""
     if not any_named_media():
         return

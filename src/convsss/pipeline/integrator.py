@@ -18,7 +18,7 @@ import numpy as np
 
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
-from ..scene.presets import register_medium
+from ..media.named import register_medium
 from ..signals import mitsuba_render
 from ..timing import StageTimer
 from .params import (
@@ -325,7 +325,7 @@ def scene_parameters(scene):
 
 def register():
     """Register ``convsss`` with Mitsuba (``<integrator type="convsss">`` and ``<medium type="convsss_medium">``,
-    :mod:`convsss.scene.presets`); call before loading a scene."""
+    :mod:`convsss.media.named`); call before loading a scene."""
     if mi.variant() != VARIANT:
         raise ConvsssError(f"convsss was loaded in Mitsuba variant {VARIANT!r} and this process now uses "
                            f"{mi.variant()!r}: one process renders in one variant; start a new one")

@@ -24,9 +24,9 @@ import numpy as np
 
 from ..errors import ConvsssError
 from ..materials import Material
+from ..media.named import check_boundary, check_color_model, named_medium_of
 from ..profiles.incidence import Orders
 from ..profiles.models import DEFAULT_TOTAL, PROFILE_MODELS, parse_profile_spec, resolve_profile
-from ..scene.presets import check_boundary, check_color_model, named_medium_of
 from .checks import check_lights_outside, check_span, check_surface, warn_overlaps
 from .interiors import boundary_eta, interior_material
 from .traversal import instance_to_world, scene_surfaces, shape_index, world_area, world_bbox
@@ -169,8 +169,8 @@ def find_translucent_objects(mi, scene, unit_mm=1.0, profile="", total=DEFAULT_T
     gives an object of its own. Raises :class:`~convsss.errors.ConvsssError` for a shape whose interior medium is not
     homogeneous or has varying coefficients, a translucent shape with another BSDF, a boundary with ``eta < 1``, and
     a profile entry naming no translucent object, and a ``convsss_medium`` whose boundary or ``unit_mm`` disagrees
-    with it (:func:`~convsss.scene.presets.check_boundary`); warns when a medium given by colour renders with
-    another profile model than the colour's (:class:`~convsss.scene.presets.ColorModelWarning`).
+    with it (:func:`~convsss.media.named.check_boundary`); warns when a medium given by colour renders with
+    another profile model than the colour's (:class:`~convsss.media.named.ColorModelWarning`).
     """
     default_spec, per_object = parse_profile_spec(profile)
     tables = {}  # one TabulatedProfile per CSV file

@@ -141,7 +141,7 @@ def volpath_slab_albedo(material, occluder_mm=0.0, spp=1 << 16, seed=0):
     -------
     numpy.ndarray, shape (3,)
     """
-    from ..scene.materials import translucent
+    from ..media.dicts import translucent
 
     mi = load_mitsuba()
     T = mi.ScalarTransform4f

@@ -13,6 +13,6 @@
 Only :mod:`.materials` is imported here; the others load Mitsuba when used.
 """
 
-from .materials import boundary_dict, medium_dict, medium_parameters, translucent
+from ..media.dicts import boundary_dict, medium_dict, medium_parameters, translucent
 
 __all__ = ["boundary_dict", "medium_dict", "medium_parameters", "translucent"]

@@ -17,10 +17,10 @@ import numpy as np
 
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
+from ..media.named import any_textured_media, equivalents
 from ..pipeline.checks import MeshWarning, check_named_media, mesh_topology
 from ..pipeline.integrator import register
 from .meshfiles import check_mesh_file
-from .presets import any_textured_media, equivalents
 from .textures import equivalent_media
 
 #: ``<string name=...>`` properties that name a file: every plugin's ``filename``, the convsss integrator's ``profile``.
@@ -52,7 +52,7 @@ def load_scene(source, width=None, height=None):
     around a medium that is wound inward is turned outward (:func:`wind_outward`). Raises
     :class:`~convsss.errors.ConvsssError` (one line) when the file is missing, Mitsuba cannot load it, or a
     ``<medium type="convsss_medium">`` disagrees with its shape's boundary
-    (:func:`~convsss.scene.presets.check_boundary`).
+    (:func:`~convsss.media.named.check_boundary`).
     """
     mi = load_mitsuba()
     register()

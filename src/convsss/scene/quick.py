@@ -20,7 +20,7 @@ import numpy as np
 
 from ..backend import load_mitsuba
 from ..errors import ConvsssError
-from .materials import albedo_volume_dict, translucent
+from ..media.dicts import albedo_volume_dict, translucent
 
 MESH_TYPES = {".obj": "obj", ".ply": "ply", ".serialized": "serialized"}
 #: The quick scene's film and sampler (every command that renders ``--mesh`` without a size): the paper's 800 x 800.

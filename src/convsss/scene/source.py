@@ -124,7 +124,7 @@ class SceneSource:
         return orbit_camera(scale_lights(scene, self.light_scale), self.orbit_deg)
 
     def warn_color_model(self, profile, total):
-        """Warn (:class:`~convsss.scene.presets.ColorModelWarning`) when the quick scene's object, made from
+        """Warn (:class:`~convsss.media.named.ColorModelWarning`) when the quick scene's object, made from
         ``color`` under ``color_model``, renders with another total (the integrator's ``profile`` and
         ``profile_total``, :func:`~convsss.profiles.models.rendered_total_of`); nothing without a colour."""
         if self.color is None:

@@ -26,11 +26,11 @@ is read from the grid by trilinear interpolation.
 import numpy as np
 
 from ..errors import ConvsssError
+from ..media.dicts import medium_parameters
+from ..media.named import forget, named_medium_of, texture_values
 from ..pipeline.surface import surface_square
 from ..pipeline.traversal import scene_surfaces, world_bbox
 from ..profiles.models import albedos_from_reflectances
-from .materials import medium_parameters
-from .presets import forget, named_medium_of, texture_values
 
 #: Cells of the grid along the box's longest side (each other side in proportion, at least 2).
 GRID_CELLS = 96

@@ -18,7 +18,7 @@ Mitsuba's own ``homogeneous`` medium, so that ``volpathmis`` renders the very sa
 - ``unit_mm`` (float, default 1): mm per scene unit, the convsss integrator's ``unit_mm`` (use one
   ``<default name="unit_mm" .../>`` for both).
 
-It is built as :func:`~convsss.scene.materials.medium_dict` writes a material, the very medium ``convsss scene``
+It is built as :func:`~convsss.media.dicts.medium_dict` writes a material, the very medium ``convsss scene``
 writes for a preset (isotropic phase, ``sigma_t / scale / albedo`` per scene unit)::
 
     sigma_t = (sigma_a + sigma_s') unit_mm,   scale = max_c sigma_t,   albedo = sigma_s' / (sigma_a + sigma_s'),
@@ -65,7 +65,7 @@ from ..profiles.models import (
     material_from_color,
     rendered_total_of,
 )
-from .materials import medium_dict
+from .dicts import medium_dict
 
 #: Mitsuba plugin name of the medium: ``<medium type="convsss_medium">``.
 PLUGIN = "convsss_medium"
@@ -140,7 +140,7 @@ class NamedMedium:
                 f"({self.model}, eta {self.eta:g})")
 
     def medium_dict(self):
-        """The Mitsuba ``homogeneous`` medium this stands for (:func:`~convsss.scene.materials.medium_dict`)."""
+        """The Mitsuba ``homogeneous`` medium this stands for (:func:`~convsss.media.dicts.medium_dict`)."""
         return medium_dict(self.material, self.unit_mm)
 
 

@@ -3,7 +3,7 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
-from convsss.scene.materials import boundary_dict, medium_dict, medium_parameters, translucent
+from convsss.media.dicts import boundary_dict, medium_dict, medium_parameters, translucent
 
 
 def test_sigma_t_form_fits_rgb_mode_and_round_trips():

@@ -7,12 +7,12 @@ import pytest
 
 import convsss
 from convsss.errors import ConvsssError
+from convsss.media.dicts import boundary_dict
+from convsss.media.named import ColorModelWarning, forget, named_medium, named_medium_of
 from convsss.pipeline.objects import find_translucent_objects
 from convsss.profiles import model_profile
 from convsss.profiles.models import COLOR_MODELS, color_of
 from convsss.scene.loading import load_scene
-from convsss.scene.materials import boundary_dict
-from convsss.scene.presets import ColorModelWarning, forget, named_medium, named_medium_of
 from convsss.scene.xmlwriter import scene_to_xml
 
 
