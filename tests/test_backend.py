@@ -127,3 +127,28 @@ def test_a_variant_that_cannot_start_is_one_line():
         pytest.skip("this machine starts cuda_ad_rgb")
     assert result.returncode == 0 and result.stdout.startswith("refused: Mitsuba variant 'cuda_ad_rgb' cannot "
                                                                 "start on this machine"), result.stderr
+
+
+def test_importing_a_module_sets_no_variant():
+    """Every module but the integrator's (its class derives from the variant's SamplingIntegrator) imports Mitsuba
+    without choosing a variant: a user's ``mi.set_variant`` after ``import convsss...`` is theirs to make."""
+    code = """
+import importlib, json, pkgutil, convsss
+from convsss.backend import active_variant
+names = [m.name for m in pkgutil.walk_packages(convsss.__path__, "convsss.")]
+imported = []
+for name in names:
+    if name.startswith(("convsss.pipeline.integrator", "convsss.__main__")):
+        continue
+    module = importlib.import_module(name)
+    if active_variant() is not None:
+        break
+    imported.append(name)
+print(json.dumps({"variant": active_variant(), "imported": len(imported), "last": imported[-1:]}))
+"""
+    env = {**os.environ, "PYTHONPATH": str(Path(convsss.__file__).parents[1])}
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["variant"] is None, out
+    assert out["imported"] > 80

@@ -1,7 +1,10 @@
 """The one door to Mitsuba 3: find LLVM first, then import Mitsuba and pick a variant.
 
-Every module that needs Mitsuba calls :func:`load_mitsuba` instead of ``import mitsuba``, so the LLVM trap of
-``shared/notes/mitsuba3.md`` is handled in one place.
+Every module that needs Mitsuba imports it with :func:`import_mitsuba` instead of ``import mitsuba``, so the LLVM
+trap of ``shared/notes/mitsuba3.md`` is handled in one place; importing a module sets no variant (``mi.Float`` and
+the rest are read when a function runs, in the variant active then). The variant is set where rendering starts, by
+:func:`load_mitsuba` (:func:`convsss.register`, the commands, the scene loaders), and by the integrator's module,
+whose class derives from the active variant's ``SamplingIntegrator``.
 """
 
 import sys
@@ -27,6 +30,21 @@ def active_variant():
     """The Mitsuba variant set in this process, or None (Mitsuba not imported, or no variant set yet)."""
     mi = sys.modules.get("mitsuba")
     return mi.variant() if mi is not None else None
+
+
+def import_mitsuba():
+    """The ``mitsuba`` module, imported after a usable libLLVM was found for Dr.Jit (where one is), no variant set.
+
+    Without a libLLVM of a usable version the import goes on (a CUDA variant may need none); :func:`load_mitsuba`
+    says what to install when an LLVM variant is asked for."""
+    if "mitsuba" not in sys.modules:
+        try:
+            ensure_llvm()
+        except ConvsssError:
+            pass
+    import mitsuba as mi
+
+    return mi
 
 
 def load_mitsuba(variant=None):

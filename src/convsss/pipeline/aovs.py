@@ -28,11 +28,11 @@ point, and the radiance (and the sampler's numbers) are the same whatever AOVs a
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba, to_numpy3
+from ..backend import import_mitsuba, to_numpy3
 from ..samples import LocalIrradiance
 from .params import aov_channels
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 
 def _channels(color):

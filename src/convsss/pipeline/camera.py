@@ -12,12 +12,12 @@ from dataclasses import dataclass
 import drjit as dr
 import numpy as np
 
-from ..backend import aligned, load_mitsuba, to_numpy3
+from ..backend import aligned, import_mitsuba, to_numpy3
 from ..errors import ConvsssError
 from ..samples import ViewFrame
 from .traversal import hit_indices
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 #: Camera rays traced at once when finding what is visible.
 RAYS_PER_BATCH = 1 << 20

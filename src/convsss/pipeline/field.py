@@ -34,10 +34,10 @@ import drjit as dr
 import numpy as np
 import scipy.ndimage
 
-from ..backend import load_mitsuba, to_numpy3
+from ..backend import import_mitsuba, to_numpy3
 from .interiors import phase_g
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 #: The least reduced albedo of a channel that a walk may end in the diffusion field (below, diffusion is poor).
 DIFFUSIVE_ALBEDO = 0.8

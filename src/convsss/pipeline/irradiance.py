@@ -33,7 +33,7 @@ import drjit as dr
 import numba
 import numpy as np
 
-from ..backend import load_mitsuba, to_numpy3
+from ..backend import import_mitsuba, to_numpy3
 from ..fresnel import same_eta
 from ..hashtable import capacity, empty, probe
 from ..profiles.incidence import GAIN_NODES, Orders, exit_normalization, gain_table
@@ -41,7 +41,7 @@ from .mis import power_heuristic
 from .shadow import Shadows
 from .surface import sample_surface
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 #: Lanes (points x direction samples) traced at once; bounds memory to a few hundred MB.
 CHUNK_LANES = 1 << 22

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import import_mitsuba
 from .irradiance import indirect_irradiance, object_samples
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 
 @dataclass(eq=False)

@@ -7,10 +7,10 @@ hits of paths traced before any transport exists, resolved once the transports a
 import drjit as dr
 import numpy as np
 
-from ..backend import aligned, load_mitsuba
+from ..backend import aligned, import_mitsuba
 from .mesh_exitance import MeshExitance, usable
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 
 def _color(array):

@@ -70,14 +70,14 @@ import math
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba, to_numpy3
+from ..backend import import_mitsuba, to_numpy3
 from .irradiance import Leaving, fresnel_transmittance, refracted_cosine
 from .lookups import ExitanceLookups
 from .mis import power_heuristic
 from .shadow import Shadows, classify
 from .walk import RandomWalk
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 MAX_EMITTERS_SUMMED = 8
 #: A path crosses a translucent object (Eq. S3) with the boundary's transmittance as probability where the chord

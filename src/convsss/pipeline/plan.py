@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import import_mitsuba
 from ..errors import ConvsssError
 from ..memory import USABLE_FRACTION, available_memory, check_memory
 from ..transport.mixture import PARTS_PER_CLASS
@@ -37,7 +37,7 @@ from .field import sample_count as field_sample_count
 from .irradiance import sample_count
 from .surface import has_vertices, mesh_arrays
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 #: Bytes per path of the shading (the symbolic loop's outputs, the recorded hits' room of 44 bytes a lane, the film's
 #: samples): the peak resident memory's growth per path over the prepared state's, measured on the demo at several

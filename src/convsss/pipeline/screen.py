@@ -23,10 +23,10 @@ import math
 import drjit as dr
 import numpy as np
 
-from ..backend import aligned, load_mitsuba
+from ..backend import aligned, import_mitsuba
 from ..transport.multiscale import core_width
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 #: Centres farther than ``REACH`` core widths from the point looked up are not interpolated from (Eq. V1).
 REACH = 2.0

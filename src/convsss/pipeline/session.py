@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import import_mitsuba
 from ..errors import ConvsssError
 from ..fresnel import same_eta
 from ..timing import StageTimer
@@ -60,7 +60,7 @@ from .shadow import Shadows
 from .stages import STAGES
 from .walk import warn_near_delta_boundaries
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 def _digest(params):
     """A digest of a Mitsuba object's traversed parameters (``mi.traverse``): their names and values."""

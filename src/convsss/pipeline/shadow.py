@@ -23,11 +23,11 @@ on through the rest of the mesh is what made the irradiance stage 20 times slowe
 
 import drjit as dr
 
-from ..backend import load_mitsuba
+from ..backend import import_mitsuba
 from .interiors import phase_g
 from .traversal import hit_indices
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 #: The most surfaces a shadow ray crosses (index-matched boundaries of translucent objects) before it counts as
 #: blocked.

@@ -7,9 +7,9 @@ its density had channel ``j`` drawn it, kept per lane as the ratios ``p_j / f_i`
 
 import drjit as dr
 
-from ..backend import load_mitsuba
+from ..backend import import_mitsuba
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 
 def ones(n):

@@ -15,10 +15,10 @@ import math
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import import_mitsuba
 from ..morton import MORTON_BITS, interleave
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 #: The golden ratio's fractional part: the rank-1 lattice of the points within a face.
 GOLDEN = 0.5 * (math.sqrt(5.0) - 1.0)

@@ -54,12 +54,12 @@ from dataclasses import dataclass
 
 import drjit as dr
 
-from ..backend import load_mitsuba
+from ..backend import import_mitsuba
 from .irradiance import fresnel_transmittance, refracted_cosine
 from .shadow import classify
 from .spectral_mis import ended, mis, ones, update, where
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 #: The most scattering events a path makes inside media (the walk's cap; a path past it ends there).
 MAX_WALK = 100_000

@@ -18,8 +18,8 @@ import numpy as np
 from ..backend import load_mitsuba, ordered_kernels
 from ..errors import ConvsssError
 from ..media.named import any_textured_media, equivalents
+from ..pipeline import register
 from ..pipeline.checks import MeshWarning, check_named_media, mesh_topology
-from ..pipeline.integrator import register
 from .meshfiles import check_mesh_file
 from .textures import equivalent_media
 

@@ -10,10 +10,10 @@ import re
 
 import numpy as np
 
-from ..backend import load_mitsuba
+from ..backend import import_mitsuba
 from ..errors import ConvsssError
 
-mi = load_mitsuba()
+mi = import_mitsuba()
 
 #: The parameters of an emitter that carry its power: Mitsuba's point and spot ``intensity``, area and constant
 #: ``radiance``, directional ``irradiance`` (a value or a texture's data), and the environment map's ``scale``.
