@@ -51,6 +51,8 @@ def _means_and_noise(images):
 
 def _compare(mi, scene, walk_depth=float("inf")):
     walk = mi.load_dict({"type": "convsss", "walk_depth": walk_depth, "max_depth": -1})
+    mi.render(scene, integrator=walk, spp=1)
+    assert walk.stats["walk"]["paths"] > 0  # it walked (auto could have chosen the transport)
     reference = reference_integrator()
     ours = [np.array(mi.render(scene, integrator=walk, spp=SPP, seed=s), dtype=np.float64)[..., :3] for s in (1, 2)]
     truth = [np.array(mi.render(scene, integrator=reference, spp=SPP, seed=s), dtype=np.float64)[..., :3]
@@ -70,7 +72,7 @@ def _compare(mi, scene, walk_depth=float("inf")):
     pytest.param("ketchup", "dielectric", "environment", marks=pytest.mark.slow),
     pytest.param("wholemilk", "roughdielectric", "area", marks=pytest.mark.slow),
     pytest.param("skin1", "null", "spot", marks=pytest.mark.slow),
-    ("skin1", "roughdielectric", "area+environment"),  # each emitter sampled: a hit weighs with its own density
+    ("skin1", "roughdielectric", "area+environment"),  # one chosen, as volpathmis: its choice's odds
     pytest.param("wholemilk", "null", "spheres", marks=pytest.mark.slow),  # one chosen: its choice's odds too
 ])
 def test_walking_to_the_end_is_volpathmis(mi, sphere_scene, material, boundary, light):
@@ -98,6 +100,14 @@ def test_a_heterogeneous_interior_is_volpathmis(mi, sphere_scene, tmp_path):
     scene = sphere_scene(material="skin1", radius=1.0, boundary="null", res=RES, emitters=_lights(mi, "area", 1.0))
     scene["object"]["interior"] = albedo_volume_dict(convsss.material("skin1"), grid, to_world)
     _compare(mi, mi.load_dict(scene))
+
+
+def test_auto_walks_sample_each_emitter_and_keep_the_mean_of_volpathmis(mi, sphere_scene):
+    """auto's walks sample every emitter at each vertex (a hit weighs with that emitter's own density), where an
+    explicit inf chooses one as volpathmis does; behind a rough boundary (no Eq. W4) both are volpathmis's mean."""
+    scene = sphere_scene(material="skin1", radius=1.0, boundary="roughdielectric", res=RES, floor=True,
+                         emitters=_lights(mi, "area+environment", 1.0))
+    _compare(mi, mi.load_dict(scene), walk_depth="auto")
 
 
 @pytest.mark.slow

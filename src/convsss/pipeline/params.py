@@ -217,6 +217,12 @@ class RenderMode:
         """Whether walks end in a diffusion field (``0 < walk_depth < inf``)."""
         return 0.0 < self.walk_depth < math.inf
 
+    @property
+    def plain(self):
+        """Whether walks are ``volpathmis``'s estimator and nothing else: to their end, no light straight through
+        smooth boundaries but a delta light's, one emitter chosen per vertex (an explicit inf)."""
+        return self.walk_depth == math.inf and not self.straight
+
     def __str__(self):
         return f"{self.walk_depth:g}"
 
