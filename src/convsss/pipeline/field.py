@@ -32,7 +32,6 @@ from dataclasses import dataclass
 
 import drjit as dr
 import numpy as np
-import scipy.ndimage
 
 from ..backend import import_mitsuba, to_numpy3
 from .interiors import phase_g
@@ -80,6 +79,8 @@ class _ObjectField:
 def _depth(sd, spacing):
     """Depth below the surface at the nodes (mm; < 0 outside) from the grid's signed distance, which is exact within
     its band and clamped beyond it: deeper, the band plus the distance (a Euclidean transform) to the band."""
+    import scipy.ndimage
+
     band = -float(sd.min())
     deep = sd <= -band
     if not deep.any():

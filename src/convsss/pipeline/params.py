@@ -56,6 +56,13 @@ def reads_transports(aovs):
     return bool({"exitance", "irradiance"} & set(parse_aovs(aovs)))
 
 
+def walks_alone(params, mode):
+    """Whether a render with ``params`` in ``mode`` (a :class:`RenderMode`) needs none of stages 2-5 (samples,
+    irradiance, transports, screen): every walk goes to its end and no AOV asks for the transports' exitance or the
+    samples' irradiance."""
+    return mode.walk_depth == math.inf and not reads_transports(params.aovs)
+
+
 def aov_channels(names):
     """The film channels of the AOVs ``names`` (from :func:`parse_aovs`), e.g. ``exitance.R``, in order."""
     return [f"{name}.{channel}" for name in names for channel in AOVS[name]]

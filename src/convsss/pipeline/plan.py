@@ -35,6 +35,7 @@ from ..transport.mixture import PARTS_PER_CLASS
 from .field import planned_bytes as field_bytes
 from .field import sample_count as field_sample_count
 from .irradiance import sample_count
+from .params import walks_alone
 from .surface import has_vertices, mesh_arrays
 
 mi = import_mitsuba()
@@ -202,6 +203,8 @@ def plan_object(scene, sensor, frame, obj, visible, index, params, mode):
     depth = float(frame.to_view((0.5 * (obj.bbox_mm[0] + obj.bbox_mm[1]))[None])[0, 2])
     depth = depth if depth > 0 else float(np.median(visible.depth))
     footprint = pixel_footprint(sensor, frame, depth, p.unit_mm)
+    if walks_alone(p, mode):  # the walks reach the interior themselves: no samples, no transport to hold
+        return ObjectPlan(index, footprint, footprint, depth, 0, 0, 0, 0.0, view_bounds(obj, frame, p.unit_mm), 0)
     transport = p.transport_class()
     cell = transport.layer_cell(footprint, p.transport_params())
     count_pixel = sample_count(obj.area_mm2, cell, p.sample_density)

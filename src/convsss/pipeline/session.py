@@ -46,10 +46,10 @@ from .params import (
     IgnoredParameterWarning,
     RenderMode,
     parse_aovs,
-    reads_transports,
     render_mode,
     render_parameters,
     walk_ignored,
+    walks_alone,
 )
 from .parts import as_seed
 from .passes import build_transports, translucent_passes
@@ -196,7 +196,7 @@ class RenderSession:
     def walks_alone(self):
         """Whether the render needs none of stages 2-5: every walk goes to its end (``walk_depth`` inf) and no AOV
         asks for the transports' exitance or the samples' irradiance."""
-        return self.mode.walk_depth == math.inf and not reads_transports(self.params.aovs)
+        return walks_alone(self.params, self.mode)
 
     def _attach(self, tracer, transports, screen, diffusion=None):
         """``tracer`` reads ``transports``, ``screen`` and the ``diffusion`` field from now on; the AOVs read the

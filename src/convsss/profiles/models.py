@@ -9,8 +9,6 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
-from scipy.optimize import brentq
 
 from ..errors import ConvsssError
 from ..fresnel import check_eta, diffuse_transmittance
@@ -177,6 +175,8 @@ def albedo_from_reflectance(model, reflectance, eta):
     -------
     numpy.ndarray, shape (3,)
     """
+    from scipy.optimize import brentq
+
     eta = check_eta(eta)
     target = np.broadcast_to(np.asarray(reflectance, dtype=np.float64), (3,))
     low, high = ALBEDO_RANGE
@@ -205,6 +205,8 @@ INVERSE_FLOOR = 1e-5
 def _inverse_total(model, eta):
     """``logit(alpha')`` as a monotone (PCHIP) function of the total reflectance under ``model`` at ``eta``, the
     table's range of totals, and the largest colour (the total at the top of :data:`ALBEDO_RANGE`)."""
+    from scipy.interpolate import PchipInterpolator
+
     low = ALBEDO_RANGE[0]
     logit = np.linspace(np.log(low / (1 - low)), np.log((1 - INVERSE_FLOOR) / INVERSE_FLOOR), INVERSE_NODES)
     totals = np.array([model_total(model, 1.0 / (1.0 + np.exp(-x)), eta) for x in logit])
@@ -217,6 +219,8 @@ def albedos_from_reflectances(model, reflectance, eta, where="colour"):
     """:func:`albedo_from_reflectance` for many values at once (a texture's texels): ``reflectance`` of any shape,
     inverted through a monotone table (:data:`INVERSE_NODES`); values at or below the total of the least albedo give
     it. A value outside ``(0, top)`` is a one-line error naming ``where``."""
+    from scipy.optimize import brentq
+
     eta = check_eta(eta)
     values = np.asarray(reflectance, dtype=np.float64)
     inverse, bottom, brightest, top = _inverse_total(model, eta)

@@ -14,7 +14,6 @@ order; ``total_reflectance`` is the integral of the profile as defined, so the t
 from functools import lru_cache
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from ..errors import ConvsssError
 from .base import Profile
@@ -38,6 +37,8 @@ class OpticalCurve:
     """One channel of a profile in optical units: ``R_opt`` on a radial grid, its cubic and cumulative energy."""
 
     def __init__(self, r, values):
+        from scipy.interpolate import PchipInterpolator
+
         self.zero = not np.any(values > 0)  # a channel that does not scatter (alpha' = 0) returns nothing
         if self.zero:
             self.r, self.values, self.end, self.total, self.core_value = r[:2], np.zeros(2), float(r[1]), 0.0, 0.0

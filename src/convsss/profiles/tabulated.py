@@ -5,7 +5,6 @@ import itertools
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from ..errors import ConvsssError
 from .base import CHANNELS, Profile
@@ -33,6 +32,8 @@ class TabulatedProfile(Profile):
     """
 
     def __init__(self, r_mm, values, name="tabulated"):
+        from scipy.interpolate import PchipInterpolator
+
         r = np.asarray(r_mm, dtype=np.float64)
         v = np.asarray(values, dtype=np.float64)
         if v.ndim == 1:

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-import scipy.fft
 
 from ..errors import ConvsssError
 from ..memory import check_memory
@@ -179,6 +178,8 @@ def layer_grid(lo, hi, layers, cell_size, resolution, downsample, profile, kerne
     """The :class:`LayerGrid` over samples within ``lo``, ``hi`` (3,) of the view frame: cells of ``cell_size /
     downsample`` (default: the image-plane extent / ``resolution``), ``layers`` layers over the depth range (one for
     a flat object), kernels reaching the radius that holds all but ``kernel_tail`` of the profile's energy."""
+    import scipy.fft
+
     extent = float(max(hi[0] - lo[0], hi[1] - lo[1]))
     if cell_size is None:
         cell_size = max(extent, 1e-9) / (resolution or DEFAULT_RESOLUTION)
@@ -247,6 +248,8 @@ class ConvolutionTransport(Transport):
     )
 
     def __init__(self, samples, profile, frame, material=None, **params):
+        import scipy.fft
+
         super().__init__(samples, profile, frame, material, **params)
         p = self.params
         if not isinstance(frame, ViewFrame):
@@ -329,6 +332,8 @@ class ConvolutionTransport(Transport):
             The images are kept (float32, shape (3, H, W) each, in the irradiance's unit) for lookups and
             :meth:`layer_image`.
         """
+        import scipy.fft
+
         todo = np.array([n for n in np.unique(layers) if not self.computed[n]], dtype=np.int64)
         if len(todo) == 0:
             return

@@ -17,7 +17,6 @@ from collections import OrderedDict
 
 import numba
 import numpy as np
-import scipy.fft
 
 from .radial import profile_lookup
 
@@ -199,6 +198,8 @@ def kernel_spectra(table, r_core, h, dz, distances, reach, padded_shape, workers
     cached : bool
         Whether the spectra came from the cache.
     """
+    import scipy.fft
+
     key = (profile_key(table), float(h), float(dz), int(distances), tuple(reach), tuple(padded_shape))
     hit = CACHE.get(key)
     if hit is not None:

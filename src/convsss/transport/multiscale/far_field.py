@@ -5,7 +5,6 @@ import math
 
 import numba
 import numpy as np
-import scipy.fft
 
 from ..kernels import KernelCache
 from ..radial import profile_lookup
@@ -39,6 +38,8 @@ def _far_octant(h, shape, r_c, a, b, reach, r_scale, ds, table):
 
 def even_fast_len(n):
     """The smallest length >= ``n`` that is even and fast for ``scipy.fft`` (:func:`far_spectrum` needs it even)."""
+    import scipy.fft
+
     n = scipy.fft.next_fast_len(int(n), real=True)
     while n % 2:
         n = scipy.fft.next_fast_len(n + 1, real=True)
@@ -55,6 +56,8 @@ def far_spectrum(radial, r_c, a, b, h, fft_shape, reach):
     An even sequence's DFT of even length ``N`` is the type-I DCT of its first ``N/2 + 1`` entries, so the transform
     runs on the kernel's first octant alone (1/8 of the mesh) and the spectrum is unfolded by ``X[N - k] = X[k]``.
     """
+    import scipy.fft
+
     half = [n // 2 + 1 for n in fft_shape]
     octant = _far_octant(h, np.array(half), r_c, a, b, reach, radial.r_scale, radial.ds, radial.values)
     folded = scipy.fft.dctn(octant, type=1, axes=(1, 2, 3), workers=-1)
@@ -89,6 +92,8 @@ def padded_convolution(grid, kernel_hat, fft_shape):
     run only over the lines that hold data or are read back (about 0.6 times the work for a grid padded to twice
     its size per axis).
     """
+    import scipy.fft
+
     _, nx, ny, nz = grid.shape
     spectrum = scipy.fft.rfft(grid, n=fft_shape[2], axis=3, workers=-1)
     spectrum = scipy.fft.fft(spectrum, n=fft_shape[1], axis=2, workers=-1, overwrite_x=True)

@@ -5,10 +5,6 @@ gather the field from them (:mod:`convsss.transport.volume`)."""
 
 import numba
 import numpy as np
-import pyamg
-import scipy.ndimage
-import scipy.sparse
-from scipy.spatial import cKDTree
 
 #: A point whose offset from its nearest sample makes an angle with the normal of cosine below this lies beyond a
 #: rim (:meth:`Surface.signed_distance`).
@@ -34,6 +30,8 @@ def grid_shape(lo, hi, h, pad):
 def multigrid(matrix):
     """pyamg's smoothed-aggregation hierarchy of the symmetric positive definite ``matrix``, the same every time:
     its smoother's spectral radius is estimated from numpy's global random numbers, seeded here and restored."""
+    import pyamg
+
     state = np.random.get_state()
     try:
         np.random.seed(0)
@@ -47,6 +45,8 @@ class Surface:
     to it (> 0 outside) along the nearest sample's normal, and the normal near any point."""
 
     def __init__(self, position, normal, h):
+        from scipy.spatial import cKDTree
+
         cell = np.floor((position - position.min(axis=0)) / (0.25 * h)).astype(np.int64)
         dims = cell.max(axis=0) + 1
         _, first = np.unique((cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2], return_index=True)
@@ -80,6 +80,8 @@ class Surface:
         that stops at the band is much cheaper than one that finds every node's nearest sample), else
         (an open sheet of samples, whose inside and outside meet around its rim) the side of its nearest sample's
         tangent plane."""
+        import scipy.ndimage
+
         axes = [origin[d] + h * np.arange(shape[d]) for d in range(3)]
         nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         sd = self.signed_distance(nodes, band).reshape(shape)
@@ -103,6 +105,8 @@ def assemble(sd, z_b, diffusion, sigma_a, h):
     """The matrix of Eq. D1 on the nodes with ``sd < z_b`` (``sd`` of the grid's shape): (CSR matrix, index grid
     with -1 outside). Each inside link couples its nodes by ``-D/h^2``; a link leaving the domain adds
     ``D / (theta h^2)`` to its inside node (``theta`` where ``sd`` crosses ``z_b`` along it, Gibou et al. 2002)."""
+    import scipy.sparse
+
     inside = sd < z_b
     index = np.full(sd.shape, -1, dtype=np.int64)
     n = int(inside.sum())
