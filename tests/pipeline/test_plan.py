@@ -119,6 +119,24 @@ def test_the_walks_field_is_planned_and_refused_before_any_sample(mi, monkeypatc
         set_budget(None)
 
 
+def test_walks_to_the_end_plan_nothing_and_render_under_a_budget_the_transport_would_exceed(mi):
+    """Every walk to its end (walk_depth inf): no samples and no transport are planned, and a memory budget that
+    the transport's plan exceeds does not refuse the walk (it planned them, and refused on them, before)."""
+    from convsss.memory import resident_memory, set_budget
+
+    plain = _bunny(mi, "marble", 40.0, res=32)
+    walked = _bunny(mi, "marble", 40.0, res=32, walk_depth=float("inf"))
+    (transported,) = plain.integrator().session.survey(plain, plain.sensors()[0])[3].objects
+    (walking,) = walked.integrator().session.survey(walked, walked.sensors()[0])[3].objects
+    assert walking.samples == 0 and walking.transport_bytes == 0 and transported.transport_bytes > 2**20
+    set_budget((resident_memory() or 0) + transported.transport_bytes // 4)
+    try:
+        image = np.asarray(convsss.render(walked, spp=1))
+    finally:
+        set_budget(None)
+    assert np.isfinite(image).all() and image[..., :3].max() > 0
+
+
 def test_the_profile_rule_fills_at_most_its_bytes_whatever_the_machine(mi, monkeypatch):
     """Issue 50: on a 23 GB machine Spectralon at 800² drew 23 million samples (8.2 GiB); on any machine the rule's
     samples now fill at most PROFILE_RULE_BYTES."""
