@@ -7,8 +7,8 @@ import pytest
 
 @pytest.fixture
 def session(mi, sphere_scene):
-    """``session(render=None, **scene_options)`` -> an EditSession of a 32x32, 1 spp sphere scene (``render``: render
-    parameters instead of the defaults)."""
+    """``session(render=None, **scene_options)`` -> an EditSession of a 32x32, 1 spp sphere scene rendered by the
+    transport (walk_depth 0: these tests edit the transport's stages; ``render``: render parameters instead)."""
     from convsss.editor import EditSession
     from convsss.pipeline.integrator import register, scene_parameters
     from convsss.pipeline.params import RenderParams
@@ -17,9 +17,7 @@ def session(mi, sphere_scene):
     def make(render=None, **options):
         register()
         scene = load_scene(sphere_scene(**{"res": 32, "spp": 1, **options}))
-        params = None
-        if render is not None:
-            params = RenderParams(**{**(scene_parameters(scene) or {}), **render})
+        params = RenderParams(**{**(scene_parameters(scene) or {}), "walk_depth": 0.0, **(render or {})})
         return EditSession(scene, params=params)
 
     return make

@@ -23,9 +23,12 @@ def edit(source, spp, sensor, seed, target, port, open_browser, **integrator):
     sliders for colour and mean free path, sigma_s' and sigma_a per channel, eta (dielectric boundaries), the
     multiscale transport's accuracy, the profile model, the profile's plot and per-stage seconds.
 
-    Between edits the scene, the surface samples and their irradiance are kept: a new material of the same eta, a
-    new model or accuracy rebuilds the transports and shades again; a new eta prepares the samples again. The preview
-    is --width/--height (default 256x256) at --spp (default 1). Ctrl-C stops the server.
+    The page renders what `convsss render` renders with the same options (--walk-depth auto by default: random
+    walks where diffusion fails on an object, the transport where it holds) and says which. Where it walks, a new
+    material prepares the scene again. With the transport (--walk-depth 0, or where diffusion holds) the scene, the
+    surface samples and their irradiance are kept between edits: a new material of the same eta, a new model or
+    accuracy rebuilds the transports and shades again; a new eta prepares the samples again. The preview is
+    --width/--height (default 256x256) at --spp (default 1). Ctrl-C stops the server.
 
     \b
     Examples:

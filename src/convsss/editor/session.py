@@ -9,7 +9,11 @@ Along the data flow scene -> samples -> irradiance -> transport -> shading (docs
   transports are built again (:meth:`~convsss.pipeline.integrator.ConvsssIntegrator.retransport`) and the camera rays
   shaded again (:meth:`~convsss.pipeline.integrator.ConvsssIntegrator.render_prepared`);
 - ``eta`` changes the Fresnel transmittance ``F_t(eta, w_i)`` at every sample (Eq. 2) and the boundary's reflection:
-  the samples are prepared again (same seed: same points) and shaded.
+  the samples are prepared again (same seed: same points) and shaded;
+- the editor renders what ``convsss render`` renders (``walk_depth`` auto by default: random walks where diffusion
+  fails): where the render may walk (``walk_depth`` auto or above 0), a new material prepares again, so that auto's
+  choice is made again and the walks read the medium written into the scene. The state says what renders the objects
+  and why (``renders``).
 
 Every edit is written into the loaded scene too (the medium's ``sigma_t``/``albedo``/``scale`` and the dielectric's
 ``eta``, through ``mi.traverse``), so the scene stays the one source of truth. One object is edited; an instanced one
@@ -126,8 +130,8 @@ class EditSession:
         self.spp = samples_per_pixel(spp, self.sensor)
         if params is None:
             params = RenderParams(**(scene_parameters(scene) or {}))
-        # Edits render with the transport (the random walk reads the scene's medium, not the edited material).
-        params = params.replace(walk_depth=0.0)
+        # Edits render as `convsss render` does (walk_depth auto by default: walks where diffusion fails): an edit
+        # writes the material into the scene's medium, which the walks and the survey's choice read.
         self.integrator = self.mi.load_dict(params.integrator_dict())
         self.lock = threading.RLock()  # edits and reads from the server's threads, one at a time
         self.version = 0
@@ -198,11 +202,22 @@ class EditSession:
                          "mfp_mm": m.mfp_mm.tolist(), "albedo_prime": m.albedo_prime.tolist(),
                          "thin_channels": m.thin_channels()},
             "color_max": model_total(color_model, 1.0, m.eta), "model": self.model, "models": models,
-            "transport": p.transport, "accuracy": accuracy,
+            "transport": p.transport, "accuracy": accuracy, "renders": self._renders(),
             "presets": [x.name for x in catalog()],
             "film": [int(x) for x in self.sensor.film().crop_size()], "spp": self.spp,
             "last": self.last,
         }
+
+    def _renders(self):
+        """What renders the objects, and why: one line (the render mode the survey resolved)."""
+        p, mode = self.integrator.params, self.integrator.session.mode
+        if not mode.walks:
+            why = ("diffusion holds on every object" if p.walk_depth == "auto" else "walk_depth 0")
+            return f"the {p.transport} transport ({why})"
+        if p.walk_depth == "auto":
+            return ("random walks to their end (walk_depth auto: diffusion fails on some object, thin or small in "
+                    "transport mean free paths, or of low albedo)")
+        return f"random walks (walk_depth {mode})"
 
     def image_png(self):
         """The last render, tone-mapped, as PNG bytes."""
@@ -258,7 +273,11 @@ class EditSession:
             check_model(model)
         material = self._material(changes, model)
         params = self._params(changes.get("accuracy"))
-        if not keeps_irradiance(self.material, material, params.incidence, params.orders):
+        same = (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)
+                and np.array_equal(material.sigma_a, self.material.sigma_a) and material.eta == self.material.eta)
+        if not same and params.walk_depth != 0.0:  # what renders each object (auto), and the walks' medium, change
+            rebuilt = "prepare"
+        elif not keeps_irradiance(self.material, material, params.incidence, params.orders):
             rebuilt = "prepare"
         elif (model != self.model or params.to_dict() != self.integrator.params.to_dict()
               or not (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)
