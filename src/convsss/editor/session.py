@@ -31,6 +31,7 @@ import numpy as np
 from ..errors import ConvsssError
 from ..materials import Material, OpticallyThinWarning, catalog
 from ..materials import material as preset_material
+from ..pipeline.params import IgnoredParameterWarning
 from ..pipeline.parts import samples_per_pixel
 from ..profiles import ScaledProfile, TabulatedProfile, material_from_color
 from ..profiles.models import (
@@ -254,6 +255,7 @@ class EditSession:
         _check_types(changes)
         with self.lock, warnings.catch_warnings():
             warnings.simplefilter("ignore", OpticallyThinWarning)
+            warnings.simplefilter("ignore", IgnoredParameterWarning)  # the profile the editor sets per object
             kept, checkpoint = (self.material, self.model, self.target), self.integrator.checkpoint()
             try:
                 return self._update(changes)
