@@ -213,3 +213,20 @@ def test_a_near_delta_rough_boundary_under_a_point_light_is_said(mi, sphere_scen
         warnings.simplefilter("always")
         convsss.render(scene)
     assert any(issubclass(w.category, NearDeltaBoundaryWarning) for w in caught) == warned
+
+
+def test_max_depth_counts_a_walk_as_one_bounce_as_the_transport_does(mi):
+    """max_depth bounds walks as it bounds the transport's paths, a walk through the object one bounce: 1 shows the
+    emitters alone (the object black), 2 adds the light under the surface of direct light, 3 the floor's light on it
+    (issue 62: walks ignored max_depth, max_depth 1 rendered bit for bit the max_depth 6 image)."""
+    from convsss.scene.quick import demo_mesh, quick_scene
+
+    means = {}
+    for depth in (1, 2, 3, -1):
+        scene = mi.load_dict(quick_scene(demo_mesh(), convsss.material("skin1"), 10.0, 32, 32, 16, floor=True,
+                                         integrator={"type": "convsss", "walk_depth": float("inf"),
+                                                     "max_depth": depth}))
+        means[depth] = np.asarray(mi.render(scene, seed=1), dtype=np.float64)[..., :3].mean(axis=(0, 1))
+    assert np.all(means[1] == 0.0)
+    assert np.all(means[2] > 0.0) and np.all(means[2] < means[3]) and np.any(means[2] < 0.97 * means[3])
+    assert np.all(means[3] < 1.02 * means[-1])

@@ -143,7 +143,9 @@ def render_parameters():
                   "smooth boundaries (Eq. W4): where diffusion fails walks are short. Where a transport is named "
                   "and walk_depth is not, 0.", low=0.0, infinite=True, words=("auto",)),
         Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
-                  "light; -1 is unbounded with Russian roulette; 0 is not allowed).", low=-1),
+                  "light; -1 is unbounded with Russian roulette; 0 is not allowed). Light under a translucent "
+                  "object's surface is one bounce, whether the transport or a walk renders it (a walk's scattering "
+                  "events inside are not counted).", low=-1),
         Parameter("rr_depth", int, 5, "Depth from which Russian roulette may end paths.", low=1),
         Parameter("unit_mm", float, 1.0, "How many mm one scene unit is (scene coefficients are per scene unit).",
                   low=0.0, low_open=True),

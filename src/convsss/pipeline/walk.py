@@ -47,8 +47,10 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   extinction falls below the drawn one), so that the image moves smoothly with the trial (the paths stay where they
   are), each channel's with its own coefficients only;
 * Russian roulette on the path's weight from ``rr_depth`` (not at albedo ~1 inside a medium, where it would only add
-  fireflies: there the roulette's survival odds are the weight itself, capped at 1), ``max_depth`` surface bounces
-  and at most :data:`MAX_WALK` scattering events inside media.
+  fireflies: there the roulette's survival odds are the weight itself, capped at 1), ``max_depth`` bounces (on
+  opaque surfaces, and one per walk through a medium, at its first scattering: the transport's convention, where the
+  exitance is one bounce; so ``max_depth`` 1 shows the emitters alone and 2 adds the light under the surface of
+  direct light, as with the transport) and at most :data:`MAX_WALK` scattering events inside media.
 """
 
 import warnings
@@ -124,7 +126,8 @@ class _Path:
     after_scatter: object  # the last event was a scattering in a medium
     straight_out: object  # and then the path refracted out through a smooth boundary
     valid: object
-    depth: object  # bounces on opaque surfaces
+    depth: object  # bounces: on opaque surfaces, and one per walk through a medium (its first scattering)
+    walking: object  # scattered in the medium it is in (since it entered it)
     events: object  # scattering events in media, reflections and refractions at their boundaries
     scatterings: object
     ended: object
@@ -142,7 +145,8 @@ class _Path:
                      last_null=dr.full(mi.Bool, False, n), needs_intersection=dr.full(mi.Bool, True, n),
                      specular_chain=dr.full(mi.Bool, True, n), after_scatter=dr.full(mi.Bool, False, n),
                      straight_out=dr.full(mi.Bool, False, n), valid=dr.full(mi.Bool, False, n),
-                     depth=dr.zeros(mi.UInt32, n), events=dr.zeros(mi.UInt32, n), scatterings=dr.zeros(mi.UInt32, n),
+                     depth=dr.zeros(mi.UInt32, n), walking=dr.full(mi.Bool, False, n),
+                     events=dr.zeros(mi.UInt32, n), scatterings=dr.zeros(mi.UInt32, n),
                      ended=dr.full(mi.Bool, False, n), active=dr.full(mi.Bool, True, n))
 
 
@@ -272,6 +276,8 @@ class RandomWalk:
         path.last_null = null
         path.events[scatter] += 1
         path.scatterings[scatter] += 1
+        path.depth[scatter & ~path.walking] += 1  # a walk is one bounce, as the transport's exitance is (max_depth)
+        path.walking |= scatter
         path.last_scatter[scatter] = _interaction(mei)
         path.specular_chain &= ~scatter
         path.after_scatter |= scatter
@@ -289,6 +295,7 @@ class RandomWalk:
         """Deep enough: the channels where diffusion holds end in its field (Eq. W3); ``(path, scatter)`` with the
         lanes that still scatter (every lane where walks go to their end)."""
         if self.field is not None:
+            scatter &= path.depth < self.max_depth  # the walk's light, within max_depth (the others end next step)
             ends, scattered = self.field.ending(mei, path.medium, scatter)
             path.ended |= scatter & (dr.max(ends) > 0.0)
             path.result[scatter] += mis(path.ratios) * scattered
@@ -302,8 +309,9 @@ class RandomWalk:
         phase = mei.medium.phase_function()
         phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
         path.valid |= scatter
+        lit = scatter & (path.depth < self.max_depth)  # the vertex's light ends a path of depth + 1 segments
         path.result = self._next_events(path.result, _interaction(mei), path.medium, path.ratios, path.channel,
-                                        sampler, scatter, lambda d: phase.eval_pdf(phase_ctx, mei, d, scatter))
+                                        sampler, lit, lambda d: phase.eval_pdf(phase_ctx, mei, d, lit))
         path.ratios_nee = where(scatter, path.ratios, path.ratios_nee)
         wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
                                                    sampler.next_2d(scatter), scatter)
@@ -363,7 +371,9 @@ class RandomWalk:
         path.ratios_nee = where(solid, path.ratios, path.ratios_nee)
         path.ratios = update(path.ratios, bs.pdf, bsdf_weight * bs.pdf, active_surface)
         path.ratios_nee = update(path.ratios_nee, 1.0, bsdf_weight * bs.pdf, solid)
-        path.medium[boundary] = si.target_medium(ray.d)
+        entered = si.target_medium(ray.d)
+        path.walking &= ~(boundary & (entered != path.medium))
+        path.medium[boundary] = entered
         path.active &= active_surface | in_medium
         return path
 
