@@ -23,7 +23,7 @@ import numpy as np
 import convsss
 
 mi = convsss.register()
-from convsss.scene.materials import medium_parameters  # noqa: E402  (after registering the variant)
+from convsss.media.dicts import medium_parameters  # noqa: E402  (after registering the variant)
 from convsss.scene.quick import demo_mesh, quick_scene  # noqa: E402
 from convsss.scene.xmlwriter import scene_to_xml  # noqa: E402
 

@@ -73,6 +73,26 @@ def _module_imports():
     return edges
 
 
+def test_every_import_of_the_package_names_a_module_that_exists():
+    """Imports inside functions too (they fail only when the function runs): scene/source.py imported a module
+    moved to media/ inside a method, which only the colour-and-mean-free-path command met."""
+    import ast
+
+    root = Path(__file__).parents[1] / "src"
+    files = {".".join(p.relative_to(root).with_suffix("").parts).removesuffix(".__init__"): p
+             for p in (root / "convsss").rglob("*.py")}
+    missing = []
+    for name, path in files.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                base = package.split(".")[:len(package.split(".")) - node.level + 1] if node.level else []
+                target = ".".join(base + ([node.module] if node.module else []))
+                if target.startswith("convsss") and target not in files:
+                    missing.append(f"{name}:{node.lineno} {target}")
+    assert not missing, missing
+
+
 def test_no_module_imports_itself_back_through_others():
     """No import cycle, imports inside functions counted, a package's ``__init__`` counted as the package (one that
     imports a child which imports the package back is a cycle: the package's ``register`` imported the integrator,

@@ -18,7 +18,7 @@ import drjit as dr
 import numpy as np
 
 import convsss
-from convsss.scene.materials import translucent
+from convsss.media.dicts import translucent
 from convsss.scene.quick import demo_mesh, quick_scene
 from convsss.pipeline.reference import render_reference
 

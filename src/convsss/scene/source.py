@@ -129,8 +129,8 @@ class SceneSource:
         ``profile_total``, :func:`~convsss.profiles.models.rendered_total_of`); nothing without a colour."""
         if self.color is None:
             return
+        from ..media.named import ColorModelWarning
         from ..profiles.models import DEFAULT_COLOR_MODEL, parse_profile_spec, rendered_total_of
-        from .presets import ColorModelWarning
 
         default, per_object = parse_profile_spec(profile)
         spec, model = per_object.get("object", default), self.color_model or DEFAULT_COLOR_MODEL
