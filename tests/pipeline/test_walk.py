@@ -110,6 +110,16 @@ def test_auto_walks_sample_each_emitter_and_keep_the_mean_of_volpathmis(mi, sphe
     _compare(mi, mi.load_dict(scene), walk_depth="auto")
 
 
+@pytest.mark.parametrize("material, light", [("skin1", "point"), ("wholemilk", "area")])
+def test_auto_walks_shadow_rays_take_the_transmittance_whole_and_keep_the_mean_of_volpathmis(mi, sphere_scene,
+                                                                                           material, light):
+    """auto's walks carry a homogeneous medium's transmittance whole along their shadow rays (no collision drawn),
+    behind a null boundary, where every shadow ray from a vertex crosses the medium: volpathmis's mean."""
+    scene = sphere_scene(material=material, radius=1.0, boundary="null", res=RES, floor=True,
+                         emitters=_lights(mi, light, 1.0))
+    _compare(mi, mi.load_dict(scene), walk_depth="auto")
+
+
 @pytest.mark.slow
 def test_two_objects_close_together_are_volpathmis(mi, sphere_scene):
     T = mi.ScalarTransform4f
@@ -203,7 +213,7 @@ def test_a_near_delta_rough_boundary_under_a_point_light_is_said(mi, sphere_scen
     (6e-10 against the smooth boundary's 0.037) without a word: the walk finds the near-delta lobe by chance."""
     import warnings
 
-    from convsss.pipeline.walk import NearDeltaBoundaryWarning
+    from convsss.pipeline.checks import NearDeltaBoundaryWarning
 
     scene_dict = sphere_scene(material="wholemilk", radius=1.0, res=8, spp=1, boundary="roughdielectric",
                               integrator={"walk_depth": "inf"})

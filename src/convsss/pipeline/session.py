@@ -37,7 +37,7 @@ from ..fresnel import same_eta
 from ..timing import StageTimer
 from .aovs import FirstHitAOVs
 from .camera import check_camera, first_hits, sensor_frame
-from .checks import check_lights_outside
+from .checks import check_lights_outside, warn_near_delta_boundaries
 from .field import diffusion_field
 from .irradiance import keeps_irradiance
 from .lighting import light_samples
@@ -58,7 +58,6 @@ from .plan import plan_samples
 from .screen import ScreenExitance
 from .shadow import Shadows
 from .stages import STAGES
-from .walk import warn_near_delta_boundaries
 
 mi = import_mitsuba()
 
