@@ -48,27 +48,37 @@ def test_the_stages_are_numbered_as_the_session_runs_them():
     assert [int(k) for k, _ in numbered] == list(range(1, len(STAGES) + 1))
 
 
-def _module_imports():
-    """``{module: modules it imports}`` over the package, at its top level and inside its functions alike (an import
-    in a function is a cycle all the same, met later), a package standing for its ``__init__``: ``from .x import y``
-    is an edge to ``x`` (or to ``x.y`` where that is a module)."""
+def _package_imports():
+    """``(files, imports)``: the package's modules ``{name: path}`` (a package named for its ``__init__``) and every
+    import statement in them, at their top level and inside their functions alike, as ``(module, line, target,
+    names)``: ``from .x import y`` is ``("...", n, "convsss....x", ["y"])``, ``import a.b`` is ``(..., "a.b", [])``."""
     import ast
 
     root = Path(__file__).parents[1] / "src"
     files = {".".join(p.relative_to(root).with_suffix("").parts).removesuffix(".__init__"): p
              for p in (root / "convsss").rglob("*.py")}
-    edges = {}
+    imports = []
     for name, path in files.items():
         package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-        edges[name] = set()
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.ImportFrom):
                 base = package.split(".")[:len(package.split(".")) - node.level + 1] if node.level else []
                 target = ".".join(base + ([node.module] if node.module else []))
-                subs = {f"{target}.{a.name}" for a in node.names} & files.keys()
-                edges[name] |= subs | ({target} & files.keys() if len(subs) < len(node.names) else set())
+                imports.append((name, node.lineno, target, [a.name for a in node.names]))
             elif isinstance(node, ast.Import):
-                edges[name] |= {a.name for a in node.names} & files.keys()
+                imports += [(name, node.lineno, a.name, []) for a in node.names]
+    return files, imports
+
+
+def _module_imports():
+    """``{module: modules it imports}`` over the package (:func:`_package_imports`: an import in a function is a
+    cycle all the same, met later): ``from .x import y`` is an edge to ``x`` (or to ``x.y`` where that is a module)."""
+    files, imports = _package_imports()
+    edges = {name: set() for name in files}
+    for name, _, target, names in imports:
+        subs = {f"{target}.{n}" for n in names} & files.keys()
+        edges[name] |= subs | ({target} & files.keys() if len(subs) < max(len(names), 1) else set())
+    for name in edges:
         edges[name].discard(name)
     return edges
 
@@ -76,20 +86,9 @@ def _module_imports():
 def test_every_import_of_the_package_names_a_module_that_exists():
     """Imports inside functions too (they fail only when the function runs): scene/source.py imported a module
     moved to media/ inside a method, which only the colour-and-mean-free-path command met."""
-    import ast
-
-    root = Path(__file__).parents[1] / "src"
-    files = {".".join(p.relative_to(root).with_suffix("").parts).removesuffix(".__init__"): p
-             for p in (root / "convsss").rglob("*.py")}
-    missing = []
-    for name, path in files.items():
-        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom):
-                base = package.split(".")[:len(package.split(".")) - node.level + 1] if node.level else []
-                target = ".".join(base + ([node.module] if node.module else []))
-                if target.startswith("convsss") and target not in files:
-                    missing.append(f"{name}:{node.lineno} {target}")
+    files, imports = _package_imports()
+    missing = [f"{name}:{line} {target}" for name, line, target, _ in imports
+               if target.startswith("convsss") and target not in files]
     assert not missing, missing
 
 
