@@ -19,7 +19,7 @@ test:
 # The fast loop: every test but those marked slow (renders over a second, subprocesses, Ctrl-C, the battery's matrix,
 # the notebook); `make test` (CI) runs them all.
 test-fast: setup
-	.venv/bin/python -m pytest -q -m "not slow"
+	.venv/bin/python -m pytest -q -m "not slow" -n 2
 
 lint: setup
 	.venv/bin/ruff check src tests
