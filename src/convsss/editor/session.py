@@ -275,15 +275,13 @@ class EditSession:
             check_model(model)
         material = self._material(changes, model)
         params = self._params(changes.get("accuracy"))
-        same = (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)
-                and np.array_equal(material.sigma_a, self.material.sigma_a) and material.eta == self.material.eta)
-        if not same and params.walk_depth != 0.0:  # what renders each object (auto), and the walks' medium, change
-            rebuilt = "prepare"
+        coefficients = (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)
+                        and np.array_equal(material.sigma_a, self.material.sigma_a))  # as they were
+        if params.walk_depth != 0.0 and not (coefficients and material.eta == self.material.eta):
+            rebuilt = "prepare"  # what renders each object (auto), and the walks' medium, change
         elif not keeps_irradiance(self.material, material, params.incidence, params.orders):
             rebuilt = "prepare"
-        elif (model != self.model or params.to_dict() != self.integrator.params.to_dict()
-              or not (np.array_equal(material.sigma_s_prime, self.material.sigma_s_prime)
-                      and np.array_equal(material.sigma_a, self.material.sigma_a))):
+        elif model != self.model or params.to_dict() != self.integrator.params.to_dict() or not coefficients:
             rebuilt = "transport"
         else:
             rebuilt = None
