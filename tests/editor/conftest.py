@@ -24,11 +24,42 @@ def session(mi, sphere_scene):
 
 
 @pytest.fixture
-def editor_server(session):
-    """A running :class:`EditorServer` on a free port of 127.0.0.1 (a dielectric sphere), shut down after the test."""
+def render_loop(session):
+    """``render_loop(max_spp=4, **scene_options)`` -> a :class:`RenderLoop` running in a thread of its own, which made
+    its session (a dielectric sphere by default) as the editor's command does; stopped after the test."""
+    from convsss.editor.loop import RenderLoop
+
+    started = []
+
+    def make(max_spp=4, **options):
+        made, ready = {}, threading.Event()
+
+        def render():
+            try:
+                made["loop"] = RenderLoop(session(**{"boundary": "dielectric", **options}), max_spp)
+            finally:
+                ready.set()
+            made["loop"].run()
+
+        thread = threading.Thread(target=render, daemon=True)
+        thread.start()
+        ready.wait(300)
+        started.append((made["loop"], thread))
+        return made["loop"]
+
+    yield make
+    for loop, thread in started:
+        loop.stop()
+        thread.join(60)
+
+
+@pytest.fixture
+def editor_server(render_loop):
+    """A running :class:`EditorServer` on a free port of 127.0.0.1 (a dielectric sphere, refined to 4 spp), shut down
+    after the test."""
     from convsss.editor.server import EditorServer
 
-    server = EditorServer(session(boundary="dielectric"), "127.0.0.1", 0)
+    server = EditorServer(render_loop(), "127.0.0.1", 0)
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
     yield server

@@ -82,7 +82,7 @@ def _raw(server, method, path, headers, body=b""):
 def test_no_other_page_can_drive_the_editor(editor_server):
     """Issue 30, defect 4: a cross-origin "simple" POST (text/plain, no preflight) and an ``Origin`` other than the
     page's own (``null`` included) are refused, and the material is unchanged; the page's own origin works."""
-    before = editor_server.session.state()["material"]
+    before = editor_server.loop.state()["material"]
     body = json.dumps({"sigma_a": [0.3, 0.3, 0.3]}).encode()
     length = {"Content-Length": str(len(body))}
     assert _raw(editor_server, "POST", "/api/update", {"Content-Type": "text/plain", **length}, body)[0] == 415
@@ -90,7 +90,7 @@ def test_no_other_page_can_drive_the_editor(editor_server):
         status, reply = _raw(editor_server, "POST", "/api/update", {"Content-Type": "application/json",
                                                                      "Origin": origin, **length}, body)
         assert status == 403 and "own page" in reply["error"]
-    assert editor_server.session.state()["material"] == before
+    assert editor_server.loop.state()["material"] == before
     own = f"http://127.0.0.1:{editor_server.server_address[1]}"
     status, reply = _raw(editor_server, "POST", "/api/update", {"Content-Type": "application/json", "Origin": own,
                                                                  **length}, body)

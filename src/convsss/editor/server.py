@@ -1,15 +1,17 @@
-"""The editor's web server: one static page and a small JSON API over an :class:`~convsss.editor.EditSession`, on the
-loopback interface only (the standard library's ``http.server``; no dependency).
+"""The editor's web server: one static page and a small JSON API over an :class:`~convsss.editor.EditSession` that a
+:class:`~convsss.editor.loop.RenderLoop` renders, on the loopback interface only (the standard library's
+``http.server``; no dependency).
 
     GET  /                the page (``static/index.html``, package data)
-    GET  /api/state       the session's :meth:`~convsss.editor.EditSession.state` (JSON)
-    POST /api/update      a JSON object of changes (:data:`~convsss.editor.session.FIELDS`) -> the new state;
-                          a bad value -> 400 ``{"error": "..."}``, nothing changed
-    GET  /image.png       the last render, tone-mapped
+    GET  /api/state       the session's :meth:`~convsss.editor.EditSession.state` and the loop's ``max_spp`` (JSON)
+    POST /api/update      a JSON object of changes (:data:`~convsss.editor.session.FIELDS`) -> the new state once the
+                          edit's first pass is shown; a bad value -> 400 ``{"error": "..."}``, nothing changed
+    GET  /image.png       the image (the mean of the passes so far), tone-mapped
     GET  /profile.png     ``r R_d(r)`` of the edited object's profile
 
 Each connection has a thread of its own and :data:`TIMEOUT` seconds to send its request (an idle or short-bodied
-client blocks nobody); edits wait for the session's lock. Only ``127.0.0.1``, ``::1`` and ``localhost`` may be bound,
+client blocks nobody); those threads never render: edits are queued to the render loop's thread, reads return what
+it last published. Only ``127.0.0.1``, ``::1`` and ``localhost`` may be bound,
 and requests must name one of them in their ``Host`` header (a page elsewhere cannot reach the API through DNS
 rebinding). An update must be ``application/json`` of at most :data:`MAX_BODY` bytes, and a browser's ``Origin``,
 when sent, must be the editor's own page: a page elsewhere cannot drive it with a cross-origin "simple" POST.
@@ -18,9 +20,7 @@ when sent, must be the editor's own page: a page elsewhere cannot drive it with 
 import http.server
 import json
 import re
-import signal
 import socketserver
-import threading
 from importlib import resources
 
 from ..errors import ConvsssError
@@ -62,7 +62,7 @@ def page():
 
 
 class EditorHandler(http.server.BaseHTTPRequestHandler):
-    """Serves :attr:`server.session` (an :class:`EditSession`)."""
+    """Serves :attr:`server.loop` (a :class:`~convsss.editor.loop.RenderLoop` and its session)."""
 
     server_version = "convsss-edit"
     timeout = TIMEOUT
@@ -92,11 +92,11 @@ class EditorHandler(http.server.BaseHTTPRequestHandler):
         if not self._local():
             return
         path = self.path.split("?", 1)[0]
-        session = self.server.session
+        session = self.server.loop.session
         if path in ("/", "/index.html"):
             self._send(200, page(), "text/html; charset=utf-8")
         elif path == "/api/state":
-            self._json(200, session.state())
+            self._json(200, self.server.loop.state())
         elif path == "/image.png":
             self._send(200, session.image_png(), "image/png")
         elif path == "/profile.png":
@@ -147,7 +147,7 @@ class EditorHandler(http.server.BaseHTTPRequestHandler):
                 raise ConvsssError("an update is a JSON object of changes, not nested thousands deep") from None
             if not isinstance(changes, dict):
                 raise ConvsssError("an update is a JSON object of changes")
-            self._json(200, self.server.session.update(**changes))
+            self._json(200, self.server.loop.submit(changes))
         except TimeoutError:  # a body shorter than its Content-Length: drop the connection
             self.close_connection = True
         except (ConvsssError, ValueError, TypeError) as error:
@@ -157,31 +157,22 @@ class EditorHandler(http.server.BaseHTTPRequestHandler):
 
 
 class EditorServer(socketserver.ThreadingMixIn, socketserver.TCPServer):
-    """An HTTP server on a loopback address, a thread per connection, holding the session its handler serves."""
+    """An HTTP server on a loopback address, a thread per connection, holding the render loop its handler serves
+    (settable after the port is taken)."""
 
     allow_reuse_address = True
     daemon_threads = True
 
-    def __init__(self, session, host="127.0.0.1", port=0):
+    def __init__(self, loop, host="127.0.0.1", port=0):
         import socket
 
         self.address_family = socket.AF_INET6 if ":" in check_loopback(host) else socket.AF_INET
-        self.session = session
-        #: Python's Ctrl-C handler when the server was made (in the main thread), put back between requests.
-        self._sigint = signal.getsignal(signal.SIGINT) if threading.current_thread() is threading.main_thread() \
-            else None
+        self.loop = loop
         try:
             super().__init__((host, int(port)), EditorHandler)
         except OSError as error:
             raise ConvsssError(f"cannot serve the editor on {host} port {port}: {error.strerror or error} (--port 0 "
                                "picks a free one)") from None
-
-    def service_actions(self):
-        """Between requests (``serve_forever``'s loop, in the thread that serves): Python's Ctrl-C handler back in
-        place. A render in a request's thread lets Mitsuba install its own, which only winds renders down: the
-        server had kept serving through Ctrl-C after the first edit (issue 51)."""
-        if self._sigint is not None and threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, self._sigint)
 
     @property
     def url(self):

@@ -19,6 +19,12 @@ Every edit is written into the loaded scene too (the medium's ``sigma_t``/``albe
 ``eta``, through ``mi.traverse``), so the scene stays the one source of truth. One object is edited; an instanced one
 edits every instance of its shapegroup (they share the medium). Images are tone-mapped by one Reinhard operator fixed
 by the first render, so a brighter material shows brighter.
+
+The preview converges while the user is idle: :meth:`EditSession.refine` renders one more pass of ``spp`` (each its own
+seed, :func:`~convsss.pipeline.parts.pass_seed`) and averages it into the image; an edit starts again from one pass.
+The session is driven from one thread (:class:`~convsss.editor.loop.RenderLoop`: the one that loaded the scene); what
+the page reads (:meth:`~EditSession.state`, :meth:`~EditSession.image_png`) is a snapshot published after each pass, so
+any thread may read it while the next pass renders.
 """
 
 import io
@@ -32,7 +38,7 @@ from ..errors import ConvsssError
 from ..materials import Material, OpticallyThinWarning, catalog
 from ..materials import material as preset_material
 from ..pipeline.params import IgnoredParameterWarning
-from ..pipeline.parts import samples_per_pixel
+from ..pipeline.parts import pass_seed, samples_per_pixel
 from ..profiles import ScaledProfile, TabulatedProfile, material_from_color
 from ..profiles.models import (
     PROFILE_MODELS,
@@ -117,8 +123,10 @@ class EditSession:
     integrator : ConvsssIntegrator
     material : Material        the edited object's material (1/mm)
     model : str                its profile model (or ``"tabulated"``)
-    version : int              one more per render
-    last : dict                the last render: ``rebuilt`` ("prepare" or "transport") and ``seconds`` per stage
+    version : int              one more per edit rendered (the first render is 1)
+    last : dict                the last edit's render: ``rebuilt`` ("prepare" or "transport") and ``seconds`` per stage
+    passes : Passes            the passes averaged into :attr:`image` since the last edit
+    image : numpy.ndarray      (H, W, 3) their mean
     """
 
     def __init__(self, scene, params=None, target=None, spp=None, seed=0, sensor=None):
@@ -134,9 +142,9 @@ class EditSession:
         # Edits render as `convsss render` does (walk_depth auto by default: walks where diffusion fails): an edit
         # writes the material into the scene's medium, which the walks and the survey's choice read.
         self.integrator = self.mi.load_dict(params.integrator_dict())
-        self.lock = threading.RLock()  # edits and reads from the server's threads, one at a time
-        self.version = 0
-        self._png = self._profile_png = None
+        self.version, self.last = 0, None
+        self._shown = None  # (state, PNG bytes, profile): what the page reads, published after each pass
+        self._profile_lock, self._profile_png = threading.Lock(), None
         self._tonemap = None
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", OpticallyThinWarning)
@@ -185,9 +193,10 @@ class EditSession:
                              self.integrator.params.orders)
 
     def state(self):
-        """JSON-ready: the object, its material, model, the transport's accuracy, the choices and the last timings."""
-        with self.lock:
-            return self._state()
+        """JSON-ready: the object, its material, model, the transport's accuracy, the choices, the last edit's timings,
+        the samples per pixel averaged so far (``spp_reached``) and the image's ``noise`` (published after each pass;
+        any thread)."""
+        return self._shown[0]
 
     def _state(self):
         m, p = self.material, self.integrator.params
@@ -206,6 +215,7 @@ class EditSession:
             "transport": p.transport, "accuracy": accuracy, "renders": self._renders(),
             "presets": [x.name for x in catalog()],
             "film": [int(x) for x in self.sensor.film().crop_size()], "spp": self.spp,
+            "spp_reached": self.passes.count * self.spp, "noise": self.passes.noise(),
             "last": self.last,
         }
 
@@ -221,24 +231,21 @@ class EditSession:
         return f"random walks (walk_depth {mode})"
 
     def image_png(self):
-        """The last render, tone-mapped, as PNG bytes."""
-        with self.lock:
-            return self._png
+        """The image (the mean of the passes so far), tone-mapped, as PNG bytes (any thread)."""
+        return self._shown[1]
 
     def profile_png(self):
-        """``r R_d(r)`` of the edited object's profile (:func:`convsss.profiles.plot.plot_profiles`) as PNG bytes."""
-        with self.lock:
-            return self._plot_profile()
+        """``r R_d(r)`` of the edited object's profile (:func:`convsss.profiles.plot.plot_profiles`) as PNG bytes, drawn
+        once per edit when first asked (any thread)."""
+        version, title, model, profile = self._shown[2]
+        with self._profile_lock:
+            if self._profile_png is None or self._profile_png[0] != version:
+                from ..profiles.plot import plot_profiles
 
-    def _plot_profile(self):
-        if self._profile_png is None:
-            from ..profiles.plot import plot_profiles
-
-            buffer = io.BytesIO()
-            plot_profiles([(f"{self.target.name}: {self.material.name}", [(self.model, self.profile())])], buffer,
-                          panel_size=(4.6, 3.2))
-            self._profile_png = buffer.getvalue()
-        return self._profile_png
+                buffer = io.BytesIO()
+                plot_profiles([(title, [(model, profile)])], buffer, panel_size=(4.6, 3.2))
+                self._profile_png = (version, buffer.getvalue())
+            return self._profile_png[1]
 
     # ---- edits ----------------------------------------------------------------------------------------------------
     def update(self, **changes):
@@ -253,7 +260,7 @@ class EditSession:
         if unknown:
             raise ConvsssError(f"the editor cannot set {unknown[0]!r}: it sets {', '.join(FIELDS)}")
         _check_types(changes)
-        with self.lock, warnings.catch_warnings():
+        with warnings.catch_warnings():
             warnings.simplefilter("ignore", OpticallyThinWarning)
             warnings.simplefilter("ignore", IgnoredParameterWarning)  # the profile the editor sets per object
             kept, checkpoint = (self.material, self.model, self.target), self.integrator.checkpoint()
@@ -266,7 +273,7 @@ class EditSession:
                 raise
 
     def _update(self, changes):
-        """:meth:`update` under the lock; an exception leaves the caller to restore what it changed."""
+        """:meth:`update`; an exception leaves the caller to restore what it changed."""
         from ..pipeline.irradiance import keeps_irradiance
 
         start = time.perf_counter()
@@ -301,7 +308,6 @@ class EditSession:
             self.integrator.retransport([o.with_material(material, profile)
                                          if o.shape is self.target.shape else o for o in self.objects], params)
         self.target = self._pick(self.objects, self.target.name)
-        self._profile_png = None
         self._render(rebuilt, start)
         return self.state()
 
@@ -365,20 +371,71 @@ class EditSession:
             bsdf.update()
 
     def _render(self, rebuilt, start):
-        from ..image import Reinhard, srgb_encode
-
-        image = self.integrator.render_prepared(spp=self.spp)
+        """The edit's first pass: the passes start again from it."""
+        image = self.integrator.render_prepared(spp=self.spp, seed=self.seed)
         seconds = dict(self.integrator.stats["seconds"])
         t = time.perf_counter()
-        rgb = np.asarray(image, dtype=np.float64)[..., :3]
+        self.passes = Passes(np.asarray(image, dtype=np.float64)[..., :3])
+        self.version += 1
+        self.last = {"rebuilt": rebuilt, "seconds": seconds}
+        self._publish()
+        seconds = {**seconds, "encode": time.perf_counter() - t, "total": time.perf_counter() - start}
+        self.last = {"rebuilt": rebuilt, "seconds": seconds}
+        state, png, profile = self._shown
+        self._shown = ({**state, "last": self.last}, png, profile)  # one assignment: a reader sees either
+
+    def refine(self):
+        """One more pass of :attr:`spp` (its own seed), averaged into the image, and published; returns :meth:`state`.
+        The render loop calls it while no edit waits."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", OpticallyThinWarning)
+            image = self.integrator.render_prepared(spp=self.spp, seed=pass_seed(self.seed, self.passes.count))
+        self.passes.add(np.asarray(image, dtype=np.float64)[..., :3])
+        self._publish()
+        return self.state()
+
+    @property
+    def image(self):
+        """(H, W, 3): the mean of the passes so far."""
+        return self.passes.mean
+
+    def _publish(self):
+        """Tone-map and encode the image; make it, the state and the profile what the page reads, in one step."""
+        from ..image import Reinhard, srgb_encode
+
+        rgb = self.passes.mean
         if self._tonemap is None:
             self._tonemap = Reinhard(rgb)
         bitmap = self.mi.Bitmap(srgb_encode(self._tonemap(rgb)))
         stream = self.mi.MemoryStream()
         bitmap.write(stream, self.mi.Bitmap.FileFormat.PNG)
-        self._png = bytes(stream.raw_buffer())
-        self.image = rgb
-        seconds["encode"] = time.perf_counter() - t
-        seconds["total"] = time.perf_counter() - start
-        self.version += 1
-        self.last = {"rebuilt": rebuilt, "seconds": seconds}
+        profile = (self.version, f"{self.target.name}: {self.material.name}", self.model, self.profile())
+        self._shown = (self._state(), bytes(stream.raw_buffer()), profile)
+
+
+class Passes:
+    """Passes of one image, averaged (Welford's running mean and variance per pixel and channel).
+
+    Parameters
+    ----------
+    first : numpy.ndarray
+        (H, W, 3): the first pass.
+    """
+
+    def __init__(self, first):
+        self.count, self.mean, self._m2 = 1, first.copy(), np.zeros_like(first)
+
+    def add(self, image):
+        self.count += 1
+        delta = image - self.mean
+        self.mean += delta / self.count
+        self._m2 += delta * (image - self.mean)
+
+    def noise(self):
+        """The image's relative noise: the root mean square over pixels of each pixel's standard error (the passes'
+        variance over their count) over the root mean square of the image; None before two passes."""
+        if self.count < 2:
+            return None
+        signal = float(np.sqrt(np.mean(self.mean ** 2)))
+        error = float(np.sqrt(np.mean(self._m2 / (self.count - 1) / self.count)))
+        return error / signal if signal > 0 else 0.0
