@@ -2,12 +2,15 @@
 by the CLI and by a batch's workers (:mod:`convsss.batch`) alike.
 
 :func:`render_to_files` writes ``OUT.exr`` (linear; the AOV channels beside R, G, B), ``OUT.png`` (tone-mapped), with
-``mask`` ``OUT-mask.png`` and with ``stats_path`` a JSON file of the render's parameters and per-stage seconds.
+``mask`` ``OUT-mask.png``, with ``denoise`` ``OUT.denoised.exr`` and ``OUT.denoised.png`` (:mod:`convsss.denoise`,
+beside the raw image, never instead of it) and with ``stats_path`` a JSON file of the render's parameters and
+per-stage seconds.
 :func:`reference_to_files` renders the same scene with ``volpathmis`` in passes, rewriting ``OUT.exr``, ``OUT.png``
 and ``OUT.json`` after each. Every file is written together with its siblings or not at all, and never over an
 input (the scene and every file it names, the mesh, a profile, the ``exposure_from`` image).
 """
 
+import dataclasses
 import json
 import sys
 import time
@@ -54,8 +57,8 @@ def _spp(spp, source, camera):
     return spp if spp is not None else (SPP if source.quick else samples_per_pixel(0, camera))
 
 
-def render_to_files(source, output, *, spp=None, sensor=None, seed=0, mask=False, tonemap="reinhard", key=0.18,
-                    exposure=0.0, exposure_from=None, stats_path=None, progress=None, **integrator):
+def render_to_files(source, output, *, spp=None, sensor=None, seed=0, mask=False, denoise=False, tonemap="reinhard",
+                    key=0.18, exposure=0.0, exposure_from=None, stats_path=None, progress=None, **integrator):
     """Render ``source`` (a :class:`~convsss.scene.source.SceneSource`) with the ``convsss`` integrator and write
     the files named after the stem ``output`` (module doc); returns the stats (a dict: ``outputs``, ``seconds`` per
     stage and ``total``, parameters, shapes), also written to ``stats_path`` when given.
@@ -65,7 +68,7 @@ def render_to_files(source, output, *, spp=None, sensor=None, seed=0, mask=False
     ``exposure_from`` file are refused before anything is loaded. ``progress(stage)`` hears each stage as it starts
     (``scene_load``, the render's :data:`~convsss.pipeline.STAGES`, ``write``).
     """
-    from .pipeline.params import render_params
+    from .pipeline.params import render_params, with_aovs
     from .profiles import TabulatedProfile
     from .profiles.models import profile_files
 
@@ -76,10 +79,14 @@ def render_to_files(source, output, *, spp=None, sensor=None, seed=0, mask=False
     profiles = profile_files(integrator.get("profile") or "")
     for csv in profiles:
         TabulatedProfile.from_csv(csv)
-    exr, png, mask_png = output_paths(output, ".exr", ".png", "-mask.png")
-    check_outputs([exr, png, *([mask_png] if mask else []), *([stats_path] if stats_path else [])],
+    exr, png, mask_png, denoised_exr, denoised_png = output_paths(output, ".exr", ".png", "-mask.png",
+                                                                  ".denoised.exr", ".denoised.png")
+    denoised = [denoised_exr, denoised_png] if denoise else []
+    check_outputs([exr, png, *([mask_png] if mask else []), *denoised, *([stats_path] if stats_path else [])],
                   [*source.inputs(), *profiles, *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
+    if denoise and source.quick:  # uncorrelated pixel noise, which the denoiser removes (convsss.denoise)
+        source = dataclasses.replace(source, rfilter="box")
 
     from .backend import load_mitsuba
     from .pipeline.integrator import scene_parameters
@@ -92,18 +99,33 @@ def render_to_files(source, output, *, spp=None, sensor=None, seed=0, mask=False
     base = scene_parameters(scene) or dict(defaults)
     params = render_params(integrator, base)
     source.warn_color_model(params.profile, params.profile_total)
-    if mask:  # the AOVs asked for (given, else the scene's) and the mask
-        params = render_params({**integrator, "aovs": _with_mask(params.aovs)}, base)
+    if mask or denoise:  # the AOVs asked for (given, else the scene's), the mask, the denoiser's guides
+        from .denoise import GUIDES
+
+        extra = ("mask",) * mask + GUIDES * denoise
+        params = render_params({**integrator, "aovs": with_aovs(params.aovs, extra)}, base)
     seconds["scene_load"] = time.perf_counter() - t
     integ = mi.load_dict(params.integrator_dict())
     integ.progress = progress
     camera = pick_sensor(scene, sensor)
+    if denoise:
+        from .denoise import check_pixel_filter
+
+        check_pixel_filter(camera)
     spp = _spp(spp, source, camera)
     film = np.array(integ.render(scene, camera, seed=seed, spp=spp), dtype=np.float64)
     aovs = integ.aov_names()
     image = np.concatenate([film[..., :3], film[..., film.shape[2] - len(aovs):]], axis=2)  # RGB(A) + AOVs
     channels = ["R", "G", "B", *aovs]
     seconds.update(integ.stats["seconds"])
+    if denoise:
+        from .denoise import denoise as denoised_image
+        from .denoise import guides_of
+
+        progress("denoise")
+        t = time.perf_counter()
+        clean = denoised_image(image[..., :3], *guides_of(image, channels))
+        seconds["denoise"] = time.perf_counter() - t
     progress("write")
     t = time.perf_counter()
     from .image import exr_writer, mask_png_writer, png_writer
@@ -112,7 +134,11 @@ def render_to_files(source, output, *, spp=None, sensor=None, seed=0, mask=False
              "quick": source.summary(), "seed": seed, "spp": spp, "sensor": scene.sensors().index(camera),
              "light_scale": source.light_scale, "orbit_deg": source.orbit_deg,
              "outputs": {"exr": str(exr), "png": str(png), **({"mask": str(mask_png)} if mask else {}),
+                         **({"denoised_exr": str(denoised_exr), "denoised_png": str(denoised_png)} if denoise
+                            else {}),
                          **({"stats": str(stats_path)} if stats_path else {})},
+             "denoised": "Intel Open Image Denoise (pyoidn), guided by the albedo and normal AOVs: the "
+                         "denoised files only" if denoise else None,
              "aovs": aovs, "tonemap": {"method": tonemap, "key": key, "exposure": exposure,
                                        "exposure_from": exposure_from},
              **integ.stats, "seconds": seconds}
@@ -127,19 +153,15 @@ def render_to_files(source, output, *, spp=None, sensor=None, seed=0, mask=False
     writers = {exr: exr_writer(image, channels), png: png_writer(image, tonemap, key, exposure, anchor=anchor)}
     if mask:
         writers[mask_png] = mask_png_writer(image[..., channels.index("mask.Y")])
+    if denoise:  # the raw image's tone mapping: the two PNGs differ by the noise alone
+        writers[denoised_exr] = exr_writer(clean, ["R", "G", "B"])
+        writers[denoised_png] = png_writer(clean, tonemap, key, exposure, anchor=image[..., :3] if anchor is None
+                                           else anchor)
     if stats_path:
         writers[stats_path] = finish
     write_files(writers)
     finish()
     return stats
-
-
-def _with_mask(aovs):
-    """The ``aovs`` parameter with ``mask`` added unless it names it already."""
-    from .pipeline.params import parse_aovs
-
-    names = parse_aovs(aovs)
-    return ",".join(names if "mask" in names else (*names, "mask"))
 
 
 def reference_to_files(source, output, *, spp=None, sensor=None, seed=0, pass_spp=16, strict=False,

@@ -130,8 +130,8 @@ def test_mask_keeps_the_scenes_own_aovs(studio):
 
 
 @pytest.mark.parametrize("aovs, message", [
-    ("albedo", "aovs='albedo' is not allowed: 'albedo' is not an AOV of convsss; choose from exitance, irradiance, "
-               "object, mask, depth, normal"),
+    ("position", "aovs='position' is not allowed: 'position' is not an AOV of convsss; choose from exitance, "
+                 "irradiance, object, mask, depth, normal, albedo"),
     ("depth,depth", "aovs='depth,depth' is not allowed: 'depth' is named twice"),
 ])
 def test_bad_aovs_fail_in_one_line(studio, aovs, message):
@@ -868,3 +868,28 @@ def test_scene_with_a_colour_texture(mi, tmp_path):
         result = run("scene", *args, *texture)
         assert result.exit_code == 2 and words in result.output and len(result.output.strip().splitlines()) == 1
         assert not (tmp_path / "bad.xml").exists()
+
+
+@pytest.mark.slow
+def test_render_denoise_writes_a_denoised_image_beside_the_raw_one(tmp_path, scene_file):
+    """Issue 61 item 3: --denoise adds OUT.denoised.exr/.png (3 channels) and never replaces the raw image; the raw
+    EXR holds the guides (albedo, normal AOVs); the stats say so. A scene file's gaussian filter is warned about."""
+    import json
+
+    from convsss.image import read_image, read_layers
+
+    out = tmp_path / "b"
+    result = run("render", "--mesh", "bunny", "--material", "skin1", "--size-mm", 10, "--width", 32, "--height", 32,
+                 "--spp", 2, "--walk-depth", "inf", "--denoise", "-o", out, "--stats", tmp_path / "s.json",
+                 "--no-progress")
+    assert result.exit_code == 0, result.output
+    assert "b.denoised.exr" in result.output and "b.denoised.png" in result.output
+    raw, clean = read_image(tmp_path / "b.exr"), read_image(tmp_path / "b.denoised.exr")
+    assert clean.shape == (32, 32, 3) and not np.array_equal(raw[..., :3], clean)
+    assert {"albedo", "normal"} <= set(read_layers(tmp_path / "b.exr"))
+    stats = json.loads((tmp_path / "s.json").read_text())
+    assert "Open Image Denoise" in stats["denoised"] and stats["seconds"]["denoise"] > 0
+    assert (tmp_path / "b.denoised.png").stat().st_size > 100
+    result = run("render", scene_file, "-o", tmp_path / "m", "--walk-depth", "inf", "--spp", 1, "--denoise",
+                 "--no-progress")
+    assert result.exit_code == 0 and "correlates the pixels' noise" in result.output, result.output

@@ -36,6 +36,16 @@ def test_moving_a_slider_renders_a_new_image(editor_server, tmp_path):
             page.wait_for_function("document.body.dataset.version === '1'")
             page.wait_for_function("document.getElementById('render').complete "
                                    "&& document.getElementById('render').naturalWidth === 32")
+            # Passes refine the preview while idle (to the fixture's 4 spp), each shown; the toggle shows the raw one.
+            page.wait_for_function("document.body.dataset.spp === '4'", timeout=120_000)
+            assert "4 of 4 spp, noise" in page.locator("#passes").inner_text()
+            assert page.locator("#render").get_attribute("data-denoised") == "1"
+            page.wait_for_function("document.getElementById('render').complete")
+            denoised = page.locator("#render").screenshot()
+            page.locator("#denoise").uncheck()
+            page.wait_for_function("document.getElementById('render').dataset.denoised === '0' "
+                                   "&& document.getElementById('render').complete")
+            assert page.locator("#render").screenshot() != denoised
             before = page.locator("#render").screenshot()
             assert page.locator("#eta").is_enabled()  # a dielectric boundary
             assert page.locator("#preset option").count() == 48  # the 47 presets and the prompt

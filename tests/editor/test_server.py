@@ -42,6 +42,9 @@ def test_page_state_update_and_images(editor_server):
     assert status == 200 and new["version"] == state["version"] + 1 and new["last"]["rebuilt"] == "prepare"
     assert _request(editor_server, "GET", "/image.png")[2] != image
     assert _request(editor_server, "GET", "/profile.png")[2][:4] == b"\x89PNG"
+    status, kind, denoised = _request(editor_server, "GET", f"/image.png?v={new['version']}&denoised=1")
+    assert status == 200 and kind == "image/png" and denoised[:4] == b"\x89PNG"
+    assert denoised != _request(editor_server, "GET", "/image.png")[2] or new["max_spp"] == 0
 
 
 def test_bad_requests(editor_server):

@@ -8,9 +8,9 @@ import convsss
 from convsss.errors import ConvsssError
 from convsss.pipeline.params import RenderParams
 
-ALL = "exitance,irradiance,object,mask,depth,normal"
+ALL = "exitance,irradiance,object,mask,depth,normal,albedo"
 CHANNELS = ["exitance.R", "exitance.G", "exitance.B", "irradiance.R", "irradiance.G", "irradiance.B", "object.I",
-            "mask.Y", "depth.T", "normal.X", "normal.Y", "normal.Z"]
+            "mask.Y", "depth.T", "normal.X", "normal.Y", "normal.Z", "albedo.R", "albedo.G", "albedo.B"]
 
 
 def _render(mi, scene_dict, seed=1, **kwargs):
@@ -172,8 +172,8 @@ def test_nested_in_mitsubas_aov_integrator(mi, sphere_scene):
 
 
 @pytest.mark.parametrize("aovs, message", [
-    ("albedo", "aovs='albedo' is not allowed: 'albedo' is not an AOV of convsss; choose from exitance, irradiance, "
-               "object, mask, depth, normal"),
+    ("position", "aovs='position' is not allowed: 'position' is not an AOV of convsss; choose from exitance, "
+                 "irradiance, object, mask, depth, normal, albedo"),
     ("mask,mask", "'mask' is named twice"),
     ("exitance;object", "'exitance;object' is not an AOV"),
 ])
@@ -200,3 +200,23 @@ def test_exitance_without_shading_paths_is_asked_of_the_transport(mi, sphere_sce
     assert np.count_nonzero(images[1][..., :3]) > 100 and not np.any(images[0][..., :3])
     assert np.count_nonzero(images[0][..., 3:]) > 100
     np.testing.assert_allclose(images[0][..., 3:], images[1][..., 3:], rtol=1e-6)
+
+
+def test_albedo_is_the_objects_total_reflectance_and_the_floors_reflectance(mi, floor_render, object_mask):
+    """The denoiser's guide: on the sphere its profile's total diffuse reflectance (its colour under even light), on
+    the floor its diffuse BSDF's reflectance (Mitsuba's default 0.5), 0 where nothing is hit."""
+    from scipy.ndimage import binary_erosion
+
+    from convsss.pipeline.objects import find_translucent_objects
+
+    scene, image, aov = floor_render
+    albedo = np.stack([aov["albedo.R"], aov["albedo.G"], aov["albedo.B"]], axis=-1)
+    p = RenderParams()
+    total = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders)[0].profile
+    total = total.total_reflectance
+    inside = aov["mask.Y"] == 1.0
+    floor = binary_erosion((aov["mask.Y"] == 0.0) & (aov["depth.T"] > 0))  # whole pixels of floor (not its edge)
+    assert inside.sum() > 100 and floor.sum() > 100
+    np.testing.assert_allclose(albedo[inside], np.broadcast_to(total, albedo[inside].shape), rtol=1e-5)
+    np.testing.assert_allclose(albedo[floor], 0.5, rtol=1e-5)
+    np.testing.assert_array_equal(albedo[aov["depth.T"] == 0.0], 0.0)

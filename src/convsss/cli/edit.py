@@ -61,7 +61,8 @@ def edit(source, spp, sensor, seed, target, port, open_browser, max_spp, **integ
         faulthandler.enable()  # a crash in compiled code names where it happened
     except (AttributeError, ValueError, io.UnsupportedOperation):  # a stderr without a file (a test's runner)
         pass
-    scene = dataclasses.replace(source, width=source.width or 256, height=source.height or 256).load()
+    # The quick scene's preview in a box filter: uncorrelated pixel noise, which the denoised preview removes.
+    scene = dataclasses.replace(source, width=source.width or 256, height=source.height or 256, rfilter="box").load()
     base = scene_parameters(scene) or defaults
     camera = pick_sensor(scene, sensor)
     server = EditorServer(None, "127.0.0.1", port)  # the port is taken (or refused) before the first render

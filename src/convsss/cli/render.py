@@ -25,13 +25,14 @@ class StageProgress:
     without carriage returns); ``__call__(stage)`` moves it on. A render in passes (the integrator's ``pass k/n``)
     counts passes instead, with the time left estimated from those done."""
 
-    def __init__(self, enabled=True, terminal=None):
+    def __init__(self, enabled=True, terminal=None, stages=STAGES):
         from tqdm import tqdm
 
         terminal = sys.stderr.isatty() if terminal is None else terminal
         self.lines = enabled and not terminal
         self.start = time.perf_counter()
-        self.bar = tqdm(total=len(STAGES), desc="render", unit="stage", disable=not enabled or self.lines,
+        self.stages = stages
+        self.bar = tqdm(total=len(stages), desc="render", unit="stage", disable=not enabled or self.lines,
                         leave=True, bar_format="{desc}: {n_fmt}/{total_fmt} stages |{bar:20}| {elapsed} {postfix}")
         self.done = set()
         self.passes = None  # (this pass, of how many), once the integrator names passes
@@ -53,10 +54,10 @@ class StageProgress:
             return
         if stage not in self.done:
             self.done.add(stage)
-            self.bar.n = min(len(self.done), len(STAGES))
+            self.bar.n = min(len(self.done), len(self.stages))
             self.bar.refresh()
             if self.lines:
-                self._line(f"{stage} ({len(self.done)}/{len(STAGES)})")
+                self._line(f"{stage} ({len(self.done)}/{len(self.stages)})")
 
     def _line(self, text):
         click.echo(f"render: {text} at {time.perf_counter() - self.start:.1f} s", err=True)
@@ -64,7 +65,7 @@ class StageProgress:
     def close(self, failed=False):
         """Finish the bar: all stages done, or left where it stopped, marked ``failed``."""
         if not failed:
-            self.bar.n = len(STAGES) if self.passes is None else self.passes[0]
+            self.bar.n = len(self.stages) if self.passes is None else self.passes[0]
         self.bar.set_postfix_str("failed" if failed else "done")
         self.bar.close()
         if self.lines:
@@ -79,14 +80,18 @@ class StageProgress:
               help="Also write OUT-mask.png, the translucent objects' mask: white where a camera ray first hits one, "
                    "grey where it covers part of the pixel (the mask AOV, also added to OUT.exr, where `convsss "
                    "compare` finds it).")
+@click.option("--denoise", is_flag=True,
+              help="Also write OUT.denoised.exr and OUT.denoised.png: the image denoised by Intel Open Image Denoise, "
+                   "guided by the albedo and normal AOVs (added to OUT.exr). OUT.exr and OUT.png stay the raw render; "
+                   "compare and the stats use the raw image.")
 @integrator_options
 @tonemap_options
 @click.option("--stats", "stats_path", type=click.Path(dir_okay=False),
               help="Write a JSON file: parameters, per-stage seconds, grid and FFT shapes, pairs per layer, sample "
                    "count, and the object's size in mean free paths and diffusion lengths.")
 @PROGRESS
-def render(source, spp, sensor, seed, output, write_mask, tonemap, key, exposure, exposure_from, stats_path, progress,
-           **integrator):
+def render(source, spp, sensor, seed, output, write_mask, denoise, tonemap, key, exposure, exposure_from, stats_path,
+           progress, **integrator):
     """Render SCENE_FILE (a Mitsuba 3 XML scene) with the convsss integrator, whatever integrator the file names.
 
     A translucent object is a shape with an interior 'homogeneous' medium (or a 'convsss_medium' naming a preset
@@ -95,7 +100,7 @@ def render(source, spp, sensor, seed, output, write_mask, tonemap, key, exposure
     --mesh/--material/--size-mm build a scene around the mesh (with --specular phong, the paper's highlight, unless
     given); --color/--mfp-mm give the material by its colour and mean free path instead of a preset.
 
-    AOVs (--aovs exitance,irradiance,object,mask,depth,normal) are extra channels of OUT.exr, named as Mitsuba's
+    AOVs (--aovs exitance,irradiance,object,mask,depth,normal,albedo) are extra channels of OUT.exr, named as Mitsuba's
     aov integrator names them (exitance.R, object.I, ...), each taken at the camera ray's first hit.
 
     \b
@@ -104,18 +109,20 @@ def render(source, spp, sensor, seed, output, write_mask, tonemap, key, exposure
       convsss render --mesh bunny --material wholemilk --size-mm 40 --floor -o out/bunny
       convsss render --mesh bunny --color 0.8,0.5,0.4 --mfp-mm 2 --size-mm 40 -o out/colour
       convsss render scene.xml -o out/scene --aovs exitance,object --mask
+      convsss render scene.xml -o out/scene --spp 4 --denoise
     """
     from ..outputs import render_to_files
 
-    bar = StageProgress(progress)
+    bar = StageProgress(progress, stages=(*STAGES[:-1], "denoise", STAGES[-1]) if denoise else STAGES)
     try:
-        stats = render_to_files(source, output, spp=spp, sensor=sensor, seed=seed, mask=write_mask, tonemap=tonemap,
-                                key=key, exposure=exposure, exposure_from=exposure_from, stats_path=stats_path,
-                                progress=bar, **integrator)
+        stats = render_to_files(source, output, spp=spp, sensor=sensor, seed=seed, mask=write_mask,
+                                denoise=denoise, tonemap=tonemap, key=key, exposure=exposure,
+                                exposure_from=exposure_from, stats_path=stats_path, progress=bar, **integrator)
     except BaseException:
         bar.close(failed=True)
         raise
     bar.close()
-    outputs = [stats["outputs"][k] for k in ("exr", "png", "mask") if k in stats["outputs"]]
+    outputs = [stats["outputs"][k] for k in ("exr", "png", "mask", "denoised_exr", "denoised_png")
+               if k in stats["outputs"]]
     written = f"{', '.join(outputs[:-1])} and {outputs[-1]}"
     click.echo(f"wrote {written} ({stats['seconds']['total']:.1f} s)")

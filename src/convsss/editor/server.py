@@ -6,7 +6,7 @@
     GET  /api/state       the session's :meth:`~convsss.editor.EditSession.state` and the loop's ``max_spp`` (JSON)
     POST /api/update      a JSON object of changes (:data:`~convsss.editor.session.FIELDS`) -> the new state once the
                           edit's first pass is shown; a bad value -> 400 ``{"error": "..."}``, nothing changed
-    GET  /image.png       the image (the mean of the passes so far), tone-mapped
+    GET  /image.png       the image (the mean of the passes so far), tone-mapped; ``?denoised=1``: denoised
     GET  /profile.png     ``r R_d(r)`` of the edited object's profile
 
 Each connection has a thread of its own and :data:`TIMEOUT` seconds to send its request (an idle or short-bodied
@@ -98,7 +98,8 @@ class EditorHandler(http.server.BaseHTTPRequestHandler):
         elif path == "/api/state":
             self._json(200, self.server.loop.state())
         elif path == "/image.png":
-            self._send(200, session.image_png(), "image/png")
+            denoised = "denoised=1" in self.path.split("?", 1)[-1].split("&")
+            self._send(200, session.denoised_png() if denoised else session.image_png(), "image/png")
         elif path == "/profile.png":
             self._send(200, session.profile_png(), "image/png")
         else:

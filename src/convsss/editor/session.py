@@ -34,10 +34,11 @@ import warnings
 
 import numpy as np
 
+from ..denoise import GUIDES, check_pixel_filter, denoise, guides_of
 from ..errors import ConvsssError
 from ..materials import Material, OpticallyThinWarning, catalog
 from ..materials import material as preset_material
-from ..pipeline.params import IgnoredParameterWarning
+from ..pipeline.params import IgnoredParameterWarning, with_aovs
 from ..pipeline.parts import pass_seed, samples_per_pixel
 from ..profiles import ScaledProfile, TabulatedProfile, material_from_color
 from ..profiles.models import (
@@ -141,10 +142,13 @@ class EditSession:
             params = RenderParams(**(scene_parameters(scene) or {}))
         # Edits render as `convsss render` does (walk_depth auto by default: walks where diffusion fails): an edit
         # writes the material into the scene's medium, which the walks and the survey's choice read.
-        self.integrator = self.mi.load_dict(params.integrator_dict())
+        # The denoiser's guides (convsss.denoise) ride along as AOVs: one more ray per camera sample.
+        self.integrator = self.mi.load_dict(params.replace(aovs=with_aovs(params.aovs, GUIDES)).integrator_dict())
+        self.denoisable = check_pixel_filter(self.sensor)
         self.version, self.last = 0, None
-        self._shown = None  # (state, PNG bytes, profile): what the page reads, published after each pass
+        self._shown = None  # (state, PNG, profile, film): what the page reads, published after each pass
         self._profile_lock, self._profile_png = threading.Lock(), None
+        self._denoise_lock, self._denoised = threading.Lock(), None
         self._tonemap = None
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", OpticallyThinWarning)
@@ -216,6 +220,7 @@ class EditSession:
             "presets": [x.name for x in catalog()],
             "film": [int(x) for x in self.sensor.film().crop_size()], "spp": self.spp,
             "spp_reached": self.passes.count * self.spp, "noise": self.passes.noise(),
+            "denoisable": self.denoisable,
             "last": self.last,
         }
 
@@ -375,14 +380,14 @@ class EditSession:
         image = self.integrator.render_prepared(spp=self.spp, seed=self.seed)
         seconds = dict(self.integrator.stats["seconds"])
         t = time.perf_counter()
-        self.passes = Passes(np.asarray(image, dtype=np.float64)[..., :3])
+        self.passes = Passes(self._channels(image))
         self.version += 1
         self.last = {"rebuilt": rebuilt, "seconds": seconds}
         self._publish()
         seconds = {**seconds, "encode": time.perf_counter() - t, "total": time.perf_counter() - start}
         self.last = {"rebuilt": rebuilt, "seconds": seconds}
-        state, png, profile = self._shown
-        self._shown = ({**state, "last": self.last}, png, profile)  # one assignment: a reader sees either
+        state, *rest = self._shown
+        self._shown = ({**state, "last": self.last}, *rest)  # one assignment: a reader sees either
 
     def refine(self):
         """One more pass of :attr:`spp` (its own seed), averaged into the image, and published; returns :meth:`state`.
@@ -390,36 +395,59 @@ class EditSession:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", OpticallyThinWarning)
             image = self.integrator.render_prepared(spp=self.spp, seed=pass_seed(self.seed, self.passes.count))
-        self.passes.add(np.asarray(image, dtype=np.float64)[..., :3])
+        self.passes.add(self._channels(image))
         self._publish()
         return self.state()
+
+    def _channels(self, film):
+        """R, G, B and the AOVs (the guides among them) of a rendered film (without its alpha)."""
+        film = np.asarray(film, dtype=np.float64)
+        aovs = len(self.integrator.aov_names())
+        return np.concatenate([film[..., :3], film[..., film.shape[2] - aovs:]], axis=2)
 
     @property
     def image(self):
         """(H, W, 3): the mean of the passes so far."""
-        return self.passes.mean
+        return self.passes.mean[..., :3]
 
     def _publish(self):
         """Tone-map and encode the image; make it, the state and the profile what the page reads, in one step."""
-        from ..image import Reinhard, srgb_encode
+        from ..image import Reinhard
 
-        rgb = self.passes.mean
+        film = self.passes.mean
         if self._tonemap is None:
-            self._tonemap = Reinhard(rgb)
-        bitmap = self.mi.Bitmap(srgb_encode(self._tonemap(rgb)))
-        stream = self.mi.MemoryStream()
-        bitmap.write(stream, self.mi.Bitmap.FileFormat.PNG)
+            self._tonemap = Reinhard(film[..., :3])
         profile = (self.version, f"{self.target.name}: {self.material.name}", self.model, self.profile())
-        self._shown = (self._state(), bytes(stream.raw_buffer()), profile)
+        self._shown = (self._state(), self._encode(film[..., :3]), profile, film)
+
+    def _encode(self, rgb):
+        from ..image import srgb_encode
+
+        stream = self.mi.MemoryStream()
+        self.mi.Bitmap(srgb_encode(self._tonemap(rgb))).write(stream, self.mi.Bitmap.FileFormat.PNG)
+        return bytes(stream.raw_buffer())
+
+    def denoised_png(self):
+        """The image denoised (:func:`convsss.denoise.denoise`, guided by the passes' mean albedo and normal), in the
+        raw image's tone mapping, as PNG bytes: denoised once per pass published, when first asked (any thread; the
+        render loop is not held up)."""
+        state, _, _, film = self._shown
+        key = (state["version"], state["spp_reached"])
+        with self._denoise_lock:
+            if self._denoised is None or self._denoised[0] != key:
+                channels = ["R", "G", "B", *self.integrator.aov_names()]
+                self._denoised = (key, self._encode(denoise(film[..., :3], *guides_of(film, channels))))
+            return self._denoised[1]
 
 
 class Passes:
-    """Passes of one image, averaged (Welford's running mean and variance per pixel and channel).
+    """Passes of one image, averaged (Welford's running mean and variance per pixel and channel); each pass makes new
+    arrays (one published stays as it was).
 
     Parameters
     ----------
     first : numpy.ndarray
-        (H, W, 3): the first pass.
+        (H, W, C): the first pass, R, G, B first (the noise is theirs).
     """
 
     def __init__(self, first):
@@ -428,14 +456,14 @@ class Passes:
     def add(self, image):
         self.count += 1
         delta = image - self.mean
-        self.mean += delta / self.count
-        self._m2 += delta * (image - self.mean)
+        self.mean = self.mean + delta / self.count
+        self._m2 = self._m2 + delta * (image - self.mean)
 
     def noise(self):
         """The image's relative noise: the root mean square over pixels of each pixel's standard error (the passes'
-        variance over their count) over the root mean square of the image; None before two passes."""
+        variance over their count, R, G and B) over the root mean square of the image; None before two passes."""
         if self.count < 2:
             return None
-        signal = float(np.sqrt(np.mean(self.mean ** 2)))
-        error = float(np.sqrt(np.mean(self._m2 / (self.count - 1) / self.count)))
+        signal = float(np.sqrt(np.mean(self.mean[..., :3] ** 2)))
+        error = float(np.sqrt(np.mean(self._m2[..., :3] / (self.count - 1) / self.count)))
         return error / signal if signal > 0 else 0.0

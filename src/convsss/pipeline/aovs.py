@@ -19,7 +19,11 @@ so a pixel holds the filter-weighted mean over its camera samples. The ``aovs`` 
   objects cover (exactly so with a ``box`` filter; a wider filter spreads it over its radius);
 - ``depth`` (``depth.T``) and ``normal`` (``normal.X/Y/Z``): the hit's distance along the ray (scene units) and its
   shading normal (world space), 0 where nothing is hit, as Mitsuba's ``aov`` integrator's ``depth`` and
-  ``sh_normal`` (without the perturbation of a ``normalmap`` or ``bumpmap`` BSDF).
+  ``sh_normal`` (without the perturbation of a ``normalmap`` or ``bumpmap`` BSDF);
+- ``albedo`` (``albedo.R/G/B``): on a translucent object its total diffuse reflectance (the profile's
+  ``total_reflectance``, ``∫ 2 pi r R_d(r) dr``: the colour the object shows under even light), on another surface
+  its BSDF's diffuse reflectance (``eval_diffuse_reflectance``, as Mitsuba's ``albedo`` AOV), 0 where nothing is hit:
+  the guide a denoiser reads (:mod:`convsss.denoise`).
 
 The first hit comes from its own ray cast: the path loop's first segment is the same ray, so it meets the same
 point, and the radiance (and the sampler's numbers) are the same whatever AOVs are asked.
@@ -82,7 +86,15 @@ class FirstHitAOVs:
         values["mask"] = [dr.select(which >= 0, mi.Float(1.0), mi.Float(0.0))]
         values["depth"] = [dr.select(valid, si.t, 0.0)]
         values["normal"] = _channels(dr.select(valid, si.sh_frame.n, 0.0))
+        if "albedo" in self.names:
+            values["albedo"] = _channels(self._albedo(si, valid, which))
         return [channel for name in self.names for channel in values[name]]
+
+    def _albedo(self, si, valid, which):
+        albedo = dr.select(valid, si.bsdf().eval_diffuse_reflectance(si, valid), 0.0)
+        for k, obj in enumerate(self.tracer.objects):
+            albedo = dr.select(which == k, mi.Color3f(*[float(x) for x in obj.profile.total_reflectance]), albedo)
+        return albedo
 
     def _surface(self, ray, si, which):
         """``(exitance, irradiance)`` channel lists at the hits ``si`` of ``ray`` on translucent objects.

@@ -22,9 +22,11 @@ PROFILE_SAMPLES = 1500.0
 #: The integrator's AOVs (``aovs``) and their film channels, ``<name>.<channel>`` (Mitsuba's ``aov`` convention), all
 #: taken at the camera ray's first hit: the transport's exitance ``M`` (paper Eq. 7) and the irradiance ``E`` (Eq. 2)
 #: there on a translucent object (0 elsewhere), the translucent object's index + 1 (0: none), a mask (1 on a
-#: translucent object, 0 elsewhere; its pixel average is the coverage), and Mitsuba's ``depth`` and ``sh_normal``.
+#: translucent object, 0 elsewhere; its pixel average is the coverage), Mitsuba's ``depth`` and ``sh_normal``, and an
+#: ``albedo`` (a translucent object's total diffuse reflectance, another surface's diffuse reflectance as Mitsuba's
+#: ``albedo`` AOV: the denoiser's guide).
 AOVS = {"exitance": ("R", "G", "B"), "irradiance": ("R", "G", "B"), "object": ("I",), "mask": ("Y",),
-        "depth": ("T",), "normal": ("X", "Y", "Z")}
+        "depth": ("T",), "normal": ("X", "Y", "Z"), "albedo": ("R", "G", "B")}
 
 
 def parse_aovs(text):
@@ -34,11 +36,11 @@ def parse_aovs(text):
     --------
     >>> parse_aovs("exitance, object")
     ('exitance', 'object')
-    >>> parse_aovs("albedo")
+    >>> parse_aovs("position")
     Traceback (most recent call last):
     ...
-    convsss.errors.ConvsssError: aovs='albedo' is not allowed: 'albedo' is not an AOV of convsss; choose from \
-exitance, irradiance, object, mask, depth, normal
+    convsss.errors.ConvsssError: aovs='position' is not allowed: 'position' is not an AOV of convsss; choose from \
+exitance, irradiance, object, mask, depth, normal, albedo
     """
     names = tuple(n.strip() for n in str(text).split(",") if n.strip())
     for k, name in enumerate(names):
@@ -48,6 +50,16 @@ exitance, irradiance, object, mask, depth, normal
         if name in names[:k]:
             raise ConvsssError(f"aovs={text!r} is not allowed: {name!r} is named twice")
     return names
+
+
+def with_aovs(aovs, extra):
+    """The ``aovs`` parameter with the names ``extra`` added where it does not name them already.
+
+    >>> with_aovs("mask", ("albedo", "mask"))
+    'mask,albedo'
+    """
+    names = parse_aovs(aovs)
+    return ",".join((*names, *(name for name in extra if name not in names)))
 
 
 def reads_transports(aovs):
@@ -158,7 +170,8 @@ def render_parameters():
                   "exitance (the transport's M, RGB, on translucent objects), irradiance (the E its samples carry "
                   "there, RGB), object (the translucent object's index + 1, 0: none), mask (1 on a translucent "
                   "object; per pixel: its coverage), depth (hit distance, as Mitsuba's aov), normal (shading "
-                  "normal). Empty: none."),
+                  "normal), albedo (a translucent object's total diffuse reflectance R_d, another surface's diffuse "
+                  "reflectance). Empty: none."),
     )
 
 

@@ -106,7 +106,8 @@ def _look_at(origin, target, up=(0.0, 1.0, 0.0)):
 
 
 def quick_scene(mesh, material, size_mm, width=WIDTH, height=HEIGHT, spp=SPP, floor=False, boundary="dielectric",
-                unit_mm=1.0, integrator=None, albedo_volume=None, color_texture=None, color_model="exact"):
+                unit_mm=1.0, integrator=None, albedo_volume=None, color_texture=None, color_model="exact",
+                rfilter="gaussian"):
     """The scene dictionary described in the module docstring.
 
     Parameters
@@ -137,6 +138,9 @@ def quick_scene(mesh, material, size_mm, width=WIDTH, height=HEIGHT, spp=SPP, fl
         ``convsss_medium`` of this colour map at ``material``'s mean free path and eta, inverted under
         ``color_model`` (:func:`color_texture_medium`; it renders with convsss and ``convsss reference``, not with
         plain Mitsuba, which does not know the medium).
+    rfilter : str
+        The film's reconstruction filter: ``gaussian`` (Mitsuba's default) or ``box`` (uncorrelated pixel noise, what
+        a denoiser needs: ``convsss render --denoise`` and the editor's preview use it).
     """
     size_mm = float(size_mm)
     if not math.isfinite(size_mm) or size_mm <= 0:
@@ -148,7 +152,7 @@ def quick_scene(mesh, material, size_mm, width=WIDTH, height=HEIGHT, spp=SPP, fl
     scene = {
         "type": "scene",
         "integrator": integrator or {"type": "volpathmis", "max_depth": -1, "rr_depth": 1 << 30},
-        "sensor": _sensor(centre, radius, width, height, spp),
+        "sensor": _sensor(centre, radius, width, height, spp, rfilter),
         "object": translucent({**mesh_dict(mesh), "to_world": _matrix(to_world)}, material, unit_mm, boundary),
         **_lights(centre, radius),
     }
@@ -183,7 +187,7 @@ def _placement(mesh, shape, size):
     return to_world, 0.5 * s * (hi - lo)
 
 
-def _sensor(centre, radius, width, height, spp):
+def _sensor(centre, radius, width, height, spp, rfilter):
     """The camera: 30° across the larger side, looking at ``centre`` from slightly above, the bounding sphere of
     ``radius`` filling about 80 % of the frame."""
     aspect = width / height
@@ -195,7 +199,7 @@ def _sensor(centre, radius, width, height, spp):
         "type": "perspective", "fov": FOV_DEG, "fov_axis": "larger",
         "near_clip": 0.01 * distance, "far_clip": 100.0 * distance,
         "to_world": _look_at(camera, centre),
-        "film": {"type": "hdrfilm", "width": int(width), "height": int(height), "rfilter": {"type": "gaussian"}},
+        "film": {"type": "hdrfilm", "width": int(width), "height": int(height), "rfilter": {"type": rfilter}},
         "sampler": {"type": "independent", "sample_count": int(spp)},
     }
 

@@ -57,7 +57,8 @@ class SceneSource:
     """The scene a command renders (module doc). ``scene_file``, or ``mesh`` (a path, or ``bunny``) with
     ``material`` (a preset name) or ``color``/``mfp_mm`` (``"R,G,B"`` or one number; ``eta`` and ``color_model``
     with them), ``size_mm``, ``floor`` and ``boundary``; ``width``/``height`` (None: the scene's film, or the quick
-    scene's); ``light_scale`` and ``orbit_deg``."""
+    scene's); ``light_scale`` and ``orbit_deg``; ``rfilter`` the quick scene's film filter (a scene file keeps its
+    own)."""
 
     scene_file: str = None
     mesh: str = None
@@ -73,6 +74,7 @@ class SceneSource:
     height: int = None
     light_scale: float = 1.0
     orbit_deg: float = 0.0
+    rfilter: str = "gaussian"
 
     @property
     def quick(self):
@@ -120,7 +122,7 @@ class SceneSource:
         else:
             mesh = demo_mesh() if self.mesh == "bunny" else Path(self.mesh)
             scene = load_scene(quick_scene(mesh, made, self.size_mm, self.width or WIDTH, self.height or HEIGHT,
-                                           floor=self.floor, boundary=self.boundary))
+                                           floor=self.floor, boundary=self.boundary, rfilter=self.rfilter))
         return orbit_camera(scale_lights(scene, self.light_scale), self.orbit_deg)
 
     def warn_color_model(self, profile, total):
@@ -149,5 +151,6 @@ class SceneSource:
         return {**quick, "mesh": str(self.mesh)}
 
 
-#: The command-line options (click's parameter names) that make a :class:`SceneSource`.
-FIELDS = tuple(SceneSource.__dataclass_fields__)
+#: The command-line options (click's parameter names) that make a :class:`SceneSource` (``rfilter`` is set by the
+#: commands that denoise, not by an option).
+FIELDS = tuple(name for name in SceneSource.__dataclass_fields__ if name != "rfilter")
