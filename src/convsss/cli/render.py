@@ -83,7 +83,9 @@ class StageProgress:
 @click.option("--denoise", is_flag=True,
               help="Also write OUT.denoised.exr and OUT.denoised.png: the image denoised by Intel Open Image Denoise, "
                    "guided by the albedo and normal AOVs (added to OUT.exr). OUT.exr and OUT.png stay the raw render; "
-                   "compare and the stats use the raw image.")
+                   "compare and the stats use the raw image. With --mesh the film then uses a box pixel filter "
+                   "(independent pixel noise, which the denoiser removes); a scene file's wider filter is warned "
+                   "about.")
 @integrator_options
 @tonemap_options
 @click.option("--stats", "stats_path", type=click.Path(dir_okay=False),
