@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import convsss
+from convsss.media.dicts import translucent
 from convsss.profiles import DipoleProfile
 
 
@@ -153,7 +154,7 @@ def test_user_profile_replaces_the_dipole(mi, sphere_scene, object_mask, tmp_pat
 
 @pytest.mark.slow
 def test_two_objects_each_with_its_own_grid(mi, sphere_scene):
-    second = convsss.scene.translucent({"type": "sphere", "radius": 1.0, "center": [3.0, 0.0, 0.0]},
+    second = translucent({"type": "sphere", "radius": 1.0, "center": [3.0, 0.0, 0.0]},
                                        convsss.material("marble"), boundary="null")
     scene, image = _render(mi, sphere_scene(res=40, extra={"second": second},
                                             integrator={"transport": "convolution"}))
@@ -261,7 +262,7 @@ def _two_spheres(mi, sphere_scene, kinds):
     shapegroup holding a sphere at the origin."""
     scene = sphere_scene(res=48, spp=4)
     del scene["object"]
-    sphere = convsss.scene.translucent({"type": "sphere", "radius": 1.0}, convsss.material("skin1"))
+    sphere = translucent({"type": "sphere", "radius": 1.0}, convsss.material("skin1"))
     for name, kind, x in zip(("left", "right"), kinds, (-2.2, 2.2)):
         place = mi.ScalarTransform4f().translate([x, 0.0, 0.0])
         if kind == "plain":
