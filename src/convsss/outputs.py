@@ -179,14 +179,17 @@ def reference_to_files(source, output, *, spp=None, sensor=None, seed=0, pass_sp
     from .backend import load_mitsuba
     from .image import exr_writer, png_writer
     from .pipeline.checks import check_surfaces
-    from .pipeline.reference import BlackPassWarning, render_reference
+    from .pipeline.reference import OPEN_RR_DEPTH, BlackPassWarning, render_reference
 
     start = time.perf_counter()
     exr, png, info = output_paths(output, ".exr", ".png", ".json")
     check_outputs([exr, png, info], [*source.inputs(), *([exposure_from] if exposure_from else [])])
     anchor = exposure_anchor(exposure_from, tonemap)
     scene = source.load()
-    check_surfaces(load_mitsuba(), scene)  # an open mesh warns, as in `render`
+    open_surfaces = check_surfaces(load_mitsuba(), scene)  # an open mesh warns, as in `render`
+    if open_surfaces:
+        warnings.warn(f"Russian roulette is on from depth {OPEN_RR_DEPTH} (noisier, still unbiased): behind the open "
+                      f"translucent surface {open_surfaces[0]!r} paths could wander without end", stacklevel=2)
     camera = pick_sensor(scene, sensor)
     total_spp = _spp(spp, source, camera)
     progress = progress or (lambda *args: None)
@@ -195,7 +198,8 @@ def reference_to_files(source, output, *, spp=None, sensor=None, seed=0, pass_sp
     def save(image, done, index, n_passes):
         record.update({
             "command": "reference", "scene": None if source.quick else str(source.scene_file),
-            "integrator": "volpathmis", "rr_depth": "off", "max_depth": -1, "spp_done": done,
+            "integrator": "volpathmis", "rr_depth": OPEN_RR_DEPTH if open_surfaces else "off", "max_depth": -1,
+            "spp_done": done,
             "spp_requested": total_spp, "passes_done": index + 1, "passes": n_passes, "seed": seed,
             "seconds": time.perf_counter() - start})
         write_files({exr: exr_writer(image), png: png_writer(image, tonemap, key, exposure, anchor=anchor),
@@ -206,5 +210,5 @@ def reference_to_files(source, output, *, spp=None, sensor=None, seed=0, pass_sp
     with warnings.catch_warnings():
         if strict:
             warnings.simplefilter("error", BlackPassWarning)
-        render_reference(scene, total_spp, pass_spp, seed, save, sensor=camera)
+        render_reference(scene, total_spp, pass_spp, seed, save, sensor=camera, roulette=bool(open_surfaces))
     return {**record, "outputs": {"exr": str(exr), "png": str(png), "json": str(info)}}

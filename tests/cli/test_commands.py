@@ -454,6 +454,10 @@ def test_reference_warns_of_an_open_mesh_as_render_does(tmp_path):
                      8, "--height", 8, "--spp", 1, "-o", tmp_path / command, "--no-progress")
         assert result.exit_code == 0, result.output
         assert "translucent mesh 'object' is not watertight" in result.stderr, (command, result.stderr)
+    # Issue 62: behind an open surface, nothing closing it, volpathmis's paths without Russian roulette wandered for
+    # minutes (an open marble triangle, 128 spp); the reference says it turns the roulette on, and records it.
+    assert "Russian roulette is on from depth 5" in result.stderr
+    assert json.loads((tmp_path / "reference.json").read_text())["rr_depth"] == 5
 
 
 @pytest.mark.slow

@@ -87,13 +87,15 @@ def check_surface(mi, shape, name):
 def check_surfaces(mi, scene):
     """Warn (or refuse) as :func:`~.objects.find_translucent_objects` does for every translucent surface that does
     not bound a volume: for a path tracer (``convsss reference``), which takes the scene as it is and never asks for
-    objects."""
-    checked = set()
+    objects. Returns the names of those open surfaces."""
+    checked, open_ = set(), []
     for name, shape, _ in scene_surfaces(mi, scene):
         index = shape_index(mi, shape)
         if shape.interior_medium() is not None and index not in checked:
             checked.add(index)
-            check_surface(mi, shape, name)
+            if not check_surface(mi, shape, name)[1]:
+                open_.append(name)
+    return open_
 
 
 def check_span(obj, unit_mm):
