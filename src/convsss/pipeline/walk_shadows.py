@@ -1,0 +1,161 @@
+"""The random walk's shadow rays (:mod:`.walk`): from a scattering vertex or a surface to a light sample, through null
+boundaries and the media between by ratio tracking (a homogeneous medium's transmittance taken whole where the walk
+is not ``volpathmis``'s estimator, with Russian roulette below :data:`SHADOW_ROULETTE`), every channel's density kept
+for Eq. W1 and W2, and straight out through a smooth dielectric boundary by Eq. W4. :class:`ShadowRays` is the walk's
+part that casts them (:class:`~.walk.RandomWalk` derives from it).
+"""
+
+from dataclasses import dataclass
+
+import drjit as dr
+
+from ..backend import import_mitsuba
+from .irradiance import fresnel_transmittance, refracted_cosine
+from .spectral_mis import mis, update
+
+mi = import_mitsuba()
+
+#: Below this transmittance (largest channel) a shadow ray's homogeneous segment goes on with odds T / this.
+SHADOW_ROULETTE = 0.5
+
+
+def shadow_odds(transmittance):
+    """The odds a shadow ray's segment through a homogeneous medium goes on with (:data:`SHADOW_ROULETTE`)."""
+    return dr.minimum(dr.max(transmittance) / SHADOW_ROULETTE, 1.0)
+
+
+@dataclass
+class _Shadow:
+    """The state of a batch of the walk's shadow rays (a Dr.Jit PyTree): the ray, the distances to the light and
+    covered, its medium, the last surface hit, its Eq. W4 crossing, the density ratios as light sampling drew the light
+    and as the path's own sampling would have."""
+
+    ray: object
+    max_dist: object
+    medium: object
+    total: object
+    si: object
+    needs_intersection: object
+    crossed: object
+    with_nee: tuple
+    with_uni: tuple
+    active: object
+
+
+class ShadowRays:
+    """Next-event estimation's shadow rays of a :class:`~.walk.RandomWalk` (which holds ``scene``, ``analytic``,
+    ``straight_through``, ``classify`` and ``_evaluated``)."""
+
+    @dr.syntax
+    def _emitter(self, origin, medium, ratios, channel, sampler, active, light=None):
+        """Next-event estimation from ``origin`` (an interaction in ``medium``): a sample of emitter ``light`` (None:
+        one the scene chooses) and its shadow ray through null boundaries and the media between (a ratio-tracking
+        transmittance, every channel's density kept); ``(ratios as light sampling drew it, as the path's own sampling
+        would, emitted L, the sample, where it crossed a smooth boundary by Eq. W4)`` (no path's own sampling reaches
+        the light that way)."""
+        if light is None:
+            ds, weight = self.scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
+        else:
+            ds, weight = light.sample_direction(origin, sampler.next_2d(active), active)
+        emitted = dr.select(ds.pdf == 0.0, 0.0, weight * ds.pdf)
+        active = mi.Bool(active & (ds.pdf != 0.0))
+        ray = origin.spawn_ray_to(ds.p)
+        medium = mi.MediumPtr(medium)
+        if isinstance(origin, mi.SurfaceInteraction3f):
+            medium[origin.is_medium_transition()] = origin.target_medium(ray.d)
+        n = dr.width(ray.maxt)
+        shadow = _Shadow(ray=ray, max_dist=mi.Float(ray.maxt), medium=medium, total=dr.zeros(mi.Float, n),
+                         si=dr.zeros(mi.SurfaceInteraction3f, n), needs_intersection=dr.full(mi.Bool, True, n),
+                         crossed=dr.full(mi.Bool, False, n), with_nee=update(ratios, ds.pdf, 1.0, active),
+                         with_uni=ratios, active=active)
+        while shadow.active:
+            remaining = shadow.max_dist - shadow.total
+            shadow, mei, in_medium, escaped, trial, trial_t = self._shadow_flight(shadow, sampler, channel, ds,
+                                                                                  remaining)
+            shadow = self._shadow_surface(shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining)
+        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed
+
+    def _shadow_flight(self, shadow, sampler, channel, ds, remaining):
+        """One step of the shadow ray in a medium (``remaining`` the distance left to the light): ratio tracking to
+        the next null collision or surface, or in a homogeneous medium with :attr:`analytic` its transmittance to the
+        surface or the light."""
+        ray, si, medium = shadow.ray, shadow.si, shadow.medium
+        ray.maxt = remaining
+        shadow.active &= remaining > 0.0
+        active_medium = shadow.active & (medium != None)  # noqa: E711
+        analytic = active_medium & medium.is_homogeneous() & self.analytic
+        mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), channel, active_medium)
+        ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid() & ~analytic] = dr.minimum(mei.t, remaining)
+        intersect = shadow.needs_intersection & active_medium
+        si[intersect] = self.scene.ray_intersect(ray, intersect)
+        mei.t[analytic] = dr.inf  # no collision drawn: the transmittance to the surface or the light, whole
+        mei.t[active_medium & (si.t < mei.t)] = dr.inf
+        shadow.needs_intersection &= ~active_medium
+        trial, trial_t, _ = self._evaluated(medium, active_medium)
+        spectral = active_medium & (medium.has_spectral_extinction() | trial)
+        grey = active_medium & ~spectral
+        t = dr.minimum(remaining, dr.minimum(mei.t, si.t)) - mei.mint
+        transmittance = dr.exp(-t * mei.combined_extinction)
+        flight_pdf = dr.select((si.t < mei.t) | (mei.t > remaining), transmittance,
+                               transmittance * mei.combined_extinction)
+        odds = shadow_odds(transmittance)  # by the drawn medium, not a trial's
+        transmittance[trial] = dr.exp(-t * trial_t)
+        transmittance[analytic & (sampler.next_1d(analytic) >= odds)] = 0.0
+        # Light sampling drew it whole where analytic (its density: the odds); a flight passes it with e^{-sigma_t t}
+        shadow.with_nee = update(shadow.with_nee, dr.select(analytic, odds, flight_pdf), transmittance,
+                                 spectral | analytic)
+        shadow.with_uni = update(shadow.with_uni, flight_pdf, transmittance, spectral)
+        shadow.total[active_medium & (mei.t > remaining) & mei.is_valid()] = ds.dist
+        mei.t[active_medium & (mei.t > remaining)] = dr.inf
+        escaped = active_medium & ~mei.is_valid()
+        active_medium &= mei.is_valid()
+        spectral &= active_medium
+        grey &= active_medium
+        shadow.total[active_medium] += mei.t
+        ray.o[active_medium] = mei.p
+        si.t[active_medium] = si.t - mei.t
+        shadow.with_nee = update(shadow.with_nee, 1.0, mei.sigma_n, spectral)
+        shadow.with_uni = update(shadow.with_uni, dr.sum(mei.sigma_n / mei.combined_extinction) / 3.0, mei.sigma_n,
+                                  spectral)
+        shadow.with_nee = update(shadow.with_nee, 1.0, mei.sigma_n / mei.combined_extinction, grey)
+        return shadow, mei, active_medium, escaped, trial, trial_t
+
+    def _shadow_surface(self, shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining):
+        """The shadow ray at a surface: through a null one, blocked by any other, except a smooth dielectric boundary
+        of a translucent object that a delta light (every light but the environment where :attr:`straight_through`)
+        crosses straight out by Eq. W4."""
+        ray, si, medium = shadow.ray, shadow.si, shadow.medium
+        active_surface = shadow.active & (medium == None)  # noqa: E711
+        intersect = active_surface & shadow.needs_intersection
+        si[intersect] = self.scene.ray_intersect(ray, intersect)
+        active_surface |= escaped
+        shadow.total[active_surface] += si.t
+        inside = active_surface & (medium != None)  # noqa: E711 (leaving a medium here)
+        active_surface &= si.is_valid() & shadow.active & ~in_medium
+        bsdf = si.bsdf(ray)
+        passed = bsdf.eval_null_transmission(si, active_surface)
+        # A delta light through a translucent object's smooth dielectric boundary, which no path can reach (with
+        # straight_through, every light but the environment): straight out, times the Fresnel transmittance, the
+        # beam's compression and, in a homogeneous medium, the refracted path's length inside (Eq. W4). A rough one
+        # is left to the next-event estimation at the boundary, where its BSDF takes the light.
+        which, eta = self.classify(si)
+        smooth = ~mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+        straight = ds.delta | (self.straight_through & ~mi.has_flag(ds.emitter.flags(), mi.EmitterFlags.Infinite))
+        cos = dr.dot(si.n, ray.d)  # > 0: leaving along the outward normal
+        through = inside & (cos > 0.0) & active_surface & straight & (which >= 0) & smooth & (dr.max(passed) == 0.0)
+        shadow.crossed |= through
+        cos_out = dr.abs(cos)
+        compression = cos_out / dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
+        sigma_t = dr.select(medium.is_homogeneous(), mi.Color3f(mei.combined_extinction), 0.0)
+        sigma_t[trial] = trial_t
+        passed[through] = (fresnel_transmittance(eta, cos_out) * compression
+                           * dr.exp(-sigma_t * shadow.total * (compression - 1.0)))  # Eq. W4
+        shadow.with_nee = update(shadow.with_nee, 1.0, passed, active_surface)
+        shadow.with_uni = update(shadow.with_uni, 1.0, passed, active_surface)
+        ray[active_surface] = si.spawn_ray(ray.d)
+        ray.maxt = remaining
+        shadow.needs_intersection |= active_surface
+        shadow.active &= (in_medium | active_surface) & dr.any(mis(shadow.with_uni) != 0.0)
+        crossing = active_surface & si.is_medium_transition()
+        medium[crossing] = si.target_medium(ray.d)
+        return shadow
