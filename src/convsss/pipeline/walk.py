@@ -54,7 +54,6 @@ from dataclasses import dataclass
 import drjit as dr
 
 from ..backend import import_mitsuba
-from .guiding import GUIDED_PROBABILITY, correction, direction_pdf, dwivedi_nu, sample_direction
 from .shadow import classify
 from .spectral_mis import ended, mis, ones, update, where
 from .walk_shadows import ShadowRays, shadow_odds
@@ -63,11 +62,6 @@ mi = import_mitsuba()
 
 #: The most scattering events a path makes inside media (the walk's cap; a path past it ends there).
 MAX_WALK = 100_000
-def _hero(color, channel):
-    """Per lane, ``color``'s value in the hero ``channel``."""
-    return dr.select(channel == 0, color[0], dr.select(channel == 1, color[1], color[2]))
-
-
 def _interaction(source):  # a plain Interaction3f of a surface or medium interaction (the last scattering)
     it = dr.zeros(mi.Interaction3f, dr.width(source.p))
     it.t, it.time, it.wavelengths, it.p = source.t, source.time, source.wavelengths, source.p
@@ -103,11 +97,6 @@ class _Path:
     scatterings: object
     ended: object
     active: object
-    axis: object  # the outward normal where the path entered its medium (guiding.py)
-    mu: object  # the last direction's cosine to it
-    direction_ratio: object  # Eq. G2's density of the last direction over the phase function's, per channel
-    guided: object  # the last vertex drew the guided pair
-    mixing: object  # the flight under way is of a vertex that mixed the two pairs (its Eq. G4 still to come)
 
     @staticmethod
     def start(sampler, ray, medium):
@@ -124,9 +113,7 @@ class _Path:
                      straight_out=dr.full(mi.Bool, False, n), valid=dr.full(mi.Bool, False, n),
                      depth=dr.zeros(mi.UInt32, n), walking=dr.full(mi.Bool, False, n),
                      events=dr.zeros(mi.UInt32, n), scatterings=dr.zeros(mi.UInt32, n),
-                     ended=dr.full(mi.Bool, False, n), active=dr.full(mi.Bool, True, n),
-                     axis=dr.zeros(mi.Vector3f, n), mu=dr.zeros(mi.Float, n), direction_ratio=dr.zeros(mi.Color3f, n),
-                     guided=dr.full(mi.Bool, False, n), mixing=dr.full(mi.Bool, False, n))
+                     ended=dr.full(mi.Bool, False, n), active=dr.full(mi.Bool, True, n))
 
 
 class RandomWalk(ShadowRays):
@@ -147,13 +134,6 @@ class RandomWalk(ShadowRays):
         #: The emitters each vertex samples one by one (``each_emitter``: a shadow ray each, and a shadow-ray loop
         #: each in the walk's kernel), or ``[None]``: one the scene chooses, as ``volpathmis`` does (``mode.plain``).
         self.lights = list(scene.emitters()) if each_emitter and not mode.plain and scene.emitters() else [None]
-        #: The probability that a scattering vertex in a homogeneous medium draws the guided pair (:mod:`.guiding`),
-        #: where shadow rays take its transmittance whole (its next-event estimation needs the first segment whole);
-        #: 0 in ``volpathmis``'s estimator. ``nu0`` (Eq. G1) per translucent object's homogeneous medium.
-        self.guiding = GUIDED_PROBABILITY if self.analytic else 0.0
-        self.nu = [(mi.MediumPtr(obj.shape.interior_medium()),
-                    mi.Color3f(*[float(x) for x in dwivedi_nu(obj.material.albedo_prime)]))
-                   for obj in objects if obj.classes is None and obj.shape.interior_medium() is not None]
         #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.
         self.field = None
         #: ``(medium, sigma_t, sigma_s)`` of the homogeneous media whose paths are weighed by these coefficients
@@ -221,11 +201,6 @@ class RandomWalk(ShadowRays):
         ray, medium, si = path.ray, path.medium, path.si
         active_medium = path.active & (medium != None)  # noqa: E711 (a Dr.Jit pointer array)
         mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), path.channel, active_medium)
-        mixing = path.mixing & active_medium
-        if self.guiding:  # Eq. G3: the guided flight, drawn with sigma_t (1 - mu / nu0) in the hero channel
-            stretched = mixing & path.guided & mei.is_valid()
-            mei.t[stretched] = mei.t / (1.0 - path.mu / _hero(self._nu(medium, mixing), path.channel))
-            mei.p[stretched] = ray(mei.t)
         ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid()] = mei.t
         intersect = path.needs_intersection & active_medium
         skipped = dr.dot(path.offset, ray.d)  # from a surface: found from the offset origin, drawn from the surface
@@ -241,11 +216,6 @@ class RandomWalk(ShadowRays):
         transmittance, flight_pdf = medium.transmittance_eval_pdf(mei, si, spectral)
         transmittance[trial] = dr.exp(-trial_t * (dr.minimum(mei.t, si.t) - mei.mint))
         path.ratios = update(path.ratios, flight_pdf, transmittance, spectral)
-        if self.guiding:  # the pair's density: the mixture's, Eq. G4 times the classic pair's
-            path.ratios = update(path.ratios, correction(self._nu(medium, mixing), mei.combined_extinction, path.mu,
-                                                         dr.minimum(mei.t, si.t) - mei.mint, mei.is_valid(),
-                                                         path.direction_ratio, self.guiding), 1.0, mixing)
-            path.mixing &= ~active_medium
         escaped = active_medium & ~mei.is_valid()
         whole = escaped & medium.is_homogeneous() & self.analytic  # light sampling's density: the shadow's odds
         drawn = dr.exp(-mei.combined_extinction * (si.t - mei.mint))  # the odds by the drawn medium, not a trial's
@@ -296,32 +266,15 @@ class RandomWalk(ShadowRays):
         phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
         path.valid |= scatter
         lit = scatter & (path.depth < self.max_depth)  # the vertex's light ends a path of depth + 1 segments
-        nu = self._nu(path.medium, scatter)
-        mixing = scatter & (nu[0] > 0.0) & (dr.squared_norm(path.axis) > 0.0)
-
-        def guide(d, pdf, first):  # Eq. G4 of the path that would have flown from here to the light
-            mu = dr.dot(d, path.axis)
-            return correction(nu, mei.combined_extinction, mu, first, False, direction_pdf(nu, mu) / pdf, self.guiding)
-
         path.result = self._next_events(path.result, _interaction(mei), path.medium, path.ratios, path.channel,
-                                        sampler, lit, lambda d: phase.eval_pdf(phase_ctx, mei, d, lit),
-                                        guide if self.guiding else None, mixing)
+                                        sampler, lit, lambda d: phase.eval_pdf(phase_ctx, mei, d, lit))
         path.ratios_nee = where(scatter, path.ratios, path.ratios_nee)
         wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
                                                    sampler.next_2d(scatter), scatter)
-        value = phase_weight * phase_pdf
-        if self.guiding:  # the guided pair (Eq. G2 here, G3 in the flight) with odds P; the mixture's ratio after it
-            path.guided = mixing & (sampler.next_1d(mixing) < self.guiding)
-            drawn = sample_direction(path.axis, _hero(nu, path.channel), sampler.next_2d(mixing))
-            wo[path.guided] = drawn
-            value[path.guided], phase_pdf[path.guided] = phase.eval_pdf(phase_ctx, mei, drawn, path.guided)
-            path.mu[mixing] = dr.dot(wo, path.axis)
-            path.direction_ratio[mixing] = direction_pdf(nu, path.mu) / phase_pdf
-            path.mixing[scatter] = mixing
         path.ray[scatter] = mei.spawn_ray(wo)
         path.needs_intersection |= scatter
-        path.ratios = update(path.ratios, phase_pdf, value, scatter)
-        path.ratios_nee = update(path.ratios_nee, 1.0, value, scatter)
+        path.ratios = update(path.ratios, phase_pdf, phase_weight * phase_pdf, scatter)
+        path.ratios_nee = update(path.ratios_nee, 1.0, phase_weight * phase_pdf, scatter)
         return path
 
     def _surface(self, path, in_medium, escaped, sampler):
@@ -379,16 +332,8 @@ class RandomWalk(ShadowRays):
         path.medium[boundary] = entered
         into = active_surface & (path.medium != None)  # noqa: E711 (a flight from the surface itself)
         path.offset[into], ray.o[into] = ray.o - si.p, si.p
-        path.axis[into] = dr.select(dr.dot(si.n, ray.d) < 0.0, mi.Vector3f(si.n), -mi.Vector3f(si.n))  # outward
         path.active &= active_surface | in_medium
         return path
-
-    def _nu(self, medium, active):
-        """Per lane in ``medium`` (where ``active``): Eq. G1's ``nu0`` per channel (Color3f), 0 where not guided."""
-        nu = dr.zeros(mi.Color3f, dr.width(active))
-        for guided, value in self.nu:
-            nu[active & (medium == guided)] = value
-        return nu
 
     def _evaluated(self, medium, active):
         """Per lane in ``medium`` (where ``active``): weighed by :attr:`evaluated`'s ``sigma_t``, ``sigma_s``?"""
@@ -400,20 +345,16 @@ class RandomWalk(ShadowRays):
             sigma_t[here], sigma_s[here] = weighed_t, weighed_s
         return trial, sigma_t, sigma_s
 
-    def _next_events(self, result, origin, medium, ratios, channel, sampler, active, evaluate, guide=None,
-                     mixing=None):
+    def _next_events(self, result, origin, medium, ratios, channel, sampler, active, evaluate):
         """``result`` plus, where ``active``, the light of each of :attr:`lights` sampled from ``origin`` (a
         scattering vertex or a surface in ``medium``) and weighed against the path's own sampling there by the
         balance heuristic (Eq. W2); ``evaluate(direction)`` is that sampling's ``(value, pdf)``: the phase function's
-        or the BSDF's; ``guide(direction, pdf, length)``, where the vertex mixes the guided pair (lanes ``mixing``),
-        Eq. G4 of a path that flew ``length`` in its medium towards the light."""
+        or the BSDF's."""
         for light in self.lights:
-            end_nee, end_uni, emitted, ds, crossed, first = self._emitter(origin, medium, ratios, channel, sampler,
-                                                                          active, light)
+            end_nee, end_uni, emitted, ds, crossed = self._emitter(origin, medium, ratios, channel, sampler, active,
+                                                                   light)
             value, pdf = evaluate(ds.d)
             end_nee = update(end_nee, 1.0, value, active)
             end_uni = update(end_uni, dr.select(ds.delta | crossed, 0.0, pdf), value, active)
-            if guide is not None:
-                end_uni = update(end_uni, guide(ds.d, pdf, first), 1.0, active & mixing & (first >= 0.0))
             result[active] += mis(end_nee, end_uni) * emitted  # Eq. W2
         return result

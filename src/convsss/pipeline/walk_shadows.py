@@ -40,7 +40,6 @@ class _Shadow:
     with_nee: tuple
     with_uni: tuple
     active: object
-    first: object  # the length of its first segment in a medium (-1 until it has one)
 
 
 class ShadowRays:
@@ -52,8 +51,8 @@ class ShadowRays:
         """Next-event estimation from ``origin`` (an interaction in ``medium``): a sample of emitter ``light`` (None:
         one the scene chooses) and its shadow ray through null boundaries and the media between (a ratio-tracking
         transmittance, every channel's density kept); ``(ratios as light sampling drew it, as the path's own sampling
-        would, emitted L, the sample, where it crossed a smooth boundary by Eq. W4, the length of its first segment in a
-        medium)`` (no path's own sampling reaches the light the Eq. W4 way)."""
+        would, emitted L, the sample, where it crossed a smooth boundary by Eq. W4)`` (no path's own sampling reaches
+        the light that way)."""
         if light is None:
             ds, weight = self.scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
         else:
@@ -68,13 +67,13 @@ class ShadowRays:
         shadow = _Shadow(ray=ray, max_dist=mi.Float(ray.maxt), medium=medium, total=dr.zeros(mi.Float, n),
                          si=dr.zeros(mi.SurfaceInteraction3f, n), needs_intersection=dr.full(mi.Bool, True, n),
                          crossed=dr.full(mi.Bool, False, n), with_nee=update(ratios, ds.pdf, 1.0, active),
-                         with_uni=ratios, active=active, first=dr.full(mi.Float, -1.0, n))
+                         with_uni=ratios, active=active)
         while shadow.active:
             remaining = shadow.max_dist - shadow.total
             shadow, mei, in_medium, escaped, trial, trial_t = self._shadow_flight(shadow, sampler, channel, ds,
                                                                                   remaining)
             shadow = self._shadow_surface(shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining)
-        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed, shadow.first
+        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed
 
     def _shadow_flight(self, shadow, sampler, channel, ds, remaining):
         """One step of the shadow ray in a medium (``remaining`` the distance left to the light): ratio tracking to
@@ -96,7 +95,6 @@ class ShadowRays:
         spectral = active_medium & (medium.has_spectral_extinction() | trial)
         grey = active_medium & ~spectral
         t = dr.minimum(remaining, dr.minimum(mei.t, si.t)) - mei.mint
-        shadow.first[active_medium & (shadow.first < 0.0)] = t
         transmittance = dr.exp(-t * mei.combined_extinction)
         flight_pdf = dr.select((si.t < mei.t) | (mei.t > remaining), transmittance,
                                transmittance * mei.combined_extinction)
