@@ -897,3 +897,12 @@ def test_render_denoise_writes_a_denoised_image_beside_the_raw_one(tmp_path, sce
     result = run("render", scene_file, "-o", tmp_path / "m", "--walk-depth", "inf", "--spp", 1, "--denoise",
                  "--no-progress")
     assert result.exit_code == 0 and "correlates the pixels' noise" in result.output, result.output
+
+
+def test_the_fields_steps_show_in_the_progress(tmp_path):
+    """Issue 62: a finite --walk-depth showed nothing inside its field's stage (10-36 s); each step is said now."""
+    result = run("render", "--mesh", "bunny", "--material", "wholemilk", "--size-mm", 20, "--width", 16, "--height", 16,
+                 "--spp", 1, "--walk-depth", 4, "-o", tmp_path / "f")
+    assert result.exit_code == 0, result.output
+    assert "render: transport: the field of 'object' (1/1): its grid at" in result.stderr
+    assert "render: transport: the field of 'object' (1/1): solving" in result.stderr

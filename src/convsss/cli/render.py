@@ -38,6 +38,11 @@ class StageProgress:
         self.passes = None  # (this pass, of how many), once the integrator names passes
 
     def __call__(self, stage):
+        if ": " in stage:  # what a long stage does now ("transport: the field of 'bunny' (1/1): solving ...")
+            self.bar.set_postfix_str(stage)
+            if self.lines:
+                self._line(stage)
+            return
         if stage.startswith("pass "):
             self.passes = tuple(int(k) for k in stage[len("pass "):].split("/"))
             self.bar.bar_format = "{desc}: {n_fmt}/{total_fmt} passes |{bar:20}| {elapsed}<{remaining} {postfix}"

@@ -88,9 +88,10 @@ def _depth(sd, spacing):
     return np.where(deep, band + spacing * scipy.ndimage.distance_transform_edt(deep), -sd)
 
 
-def _object_field(obj, transport, spacing):
+def _object_field(obj, transport, spacing, note):
     """The :class:`_ObjectField` of ``obj`` from its ``transport``'s samples (Eq. D1 solved on a grid of
-    ``spacing`` mm in the transport's view frame), or None when it has no channel to end walks in."""
+    ``spacing`` mm in the transport's view frame), or None when it has no channel to end walks in; ``note(text)``
+    hears what it does next."""
     from ..profiles.diffusion import boundary
     from ..transport.volume import OPEN_DEPTH, DiffusionSolve, coefficients
 
@@ -100,11 +101,13 @@ def _object_field(obj, transport, spacing):
     k = coefficients(transport.profile, material, spacing, reflection=boundary(material.eta)[2])
     with np.errstate(divide="ignore"):
         grow = min(OPEN_DEPTH * float(np.max(1.0 / k.sigma_tr)), float(np.linalg.norm(np.ptp(view, axis=0))))
+    note(f"its grid at {spacing:.3g} mm")
     solve = DiffusionSolve(view, normal, k, spacing, grow, timings=transport.timings,
                            advice="give a larger walk_depth, or walk_depth inf", what="the random walk's field")
     usable = solve.corrected & (material.albedo_prime >= DIFFUSIVE_ALBEDO)
     if not usable.any():
         return None
+    note(f"solving {int(usable.sum())} channel(s) on {solve.sd.size:,} nodes")
     fields, _ = solve.solve(view, normal, samples.flux, tol=FIELD_TOLERANCE)
     phi, sd = solve.fluence(fields), solve.sd
     gradient = np.stack([np.stack(np.gradient(phi[..., c], spacing), axis=-1) for c in range(3)], axis=-2)
@@ -161,17 +164,20 @@ def planned_bytes(obj, mode):
     return int(nodes * (BYTES_PER_NODE + FIELD_BYTES_PER_NODE))
 
 
-def diffusion_field(objects, transports, mode, unit_mm):
+def diffusion_field(objects, transports, mode, unit_mm, note=None):
     """The fields of ``objects`` (:class:`DiffusionField`) from their ``transports``' samples (their irradiance,
     profile and view frame); None where ``walk_depth`` is 0 or inf, or no object has a field (a heterogeneous
-    interior has none: its walks go on to their end)."""
+    interior has none: its walks go on to their end). ``note(text)`` hears each step (the progress display: a field
+    takes seconds to minutes)."""
     if not mode.field:
         return None
     fields = []
-    for obj, transport in zip(objects, transports):
+    for k, (obj, transport) in enumerate(zip(objects, transports)):
         if transport is None or obj.classes is not None or not len(transport.samples):
             continue
-        made = _object_field(obj, transport, field_spacing(obj.bbox_mm, obj.material, mode.walk_depth))
+        step = (lambda text, k=k, obj=obj: note(f"the field of {obj.name!r} ({k + 1}/{len(objects)}): {text}")) \
+            if note is not None else (lambda text: None)
+        made = _object_field(obj, transport, field_spacing(obj.bbox_mm, obj.material, mode.walk_depth), step)
         if made is not None:
             fields.append(made)
     return DiffusionField(fields, mode.walk_depth, unit_mm) if fields else None

@@ -172,6 +172,10 @@ class RenderSession:
 
         return timer, stage
 
+    def _note(self, stage):
+        """``note(text)``: what ``stage`` does now, for the progress display (``announce("stage: text")``)."""
+        return lambda text: self.announce(f"{stage}: {text}")
+
     def release(self):
         """Drop what was prepared: renders start from nothing again, and the scene can be freed."""
         self.prepared = self.tracer = self.aovs = None
@@ -246,7 +250,7 @@ class RenderSession:
                                  flux_indirect=(total - flux_direct).tolist(),
                                  flux_from_translucent=flux_translucent.tolist())
         with stage("transport"):
-            diffusion = diffusion_field(shown, transports, mode, p.unit_mm)
+            diffusion = diffusion_field(shown, transports, mode, p.unit_mm, self._note("transport"))
         with stage("screen"):
             screen = ScreenExitance(sensor, shown, shown_at, transports, p.unit_mm)
         self._attach(tracer, transports, screen, diffusion)
@@ -349,7 +353,7 @@ class RenderSession:
         transports, _, passes = translucent_passes(transports, state.lighting, tracer, p.indirect_passes, stage,
                                                    self.stop)
         with stage("transport"):
-            diffusion = diffusion_field(objects, transports, mode, p.unit_mm)
+            diffusion = diffusion_field(objects, transports, mode, p.unit_mm, self._note("transport"))
         with stage("screen"):
             screen = ScreenExitance(state.sensor, objects, state.visible, transports, p.unit_mm)
         self._attach(tracer, transports, screen, diffusion)
