@@ -90,3 +90,23 @@ def test_the_fluence_deep_inside_is_what_walks_from_there_find(mi, material):
                                  scene.shapes()[0].interior_medium())
         found.append(4.0 * np.pi * dr.ravel(radiance).numpy().reshape(-1, 3).mean(axis=0))
     assert np.all(np.abs(fluence.mean(axis=0) / np.mean(found, axis=0) - 1.0) < 0.03)
+
+
+def test_a_field_far_coarser_than_walk_depth_asks_is_said():
+    """Issue 62: on a 1e5 mm object at walk_depth 2 the grid (at its node cap) has cells of hundreds of mm, so no walk
+    ended in the field, and nothing said so."""
+    import types
+    import warnings
+
+    import convsss
+    from convsss.pipeline.field import CoarseFieldWarning, _check_resolution, field_spacing
+
+    material = convsss.material("wholemilk")
+    for size_mm, warned in ((1e5, True), (20.0, False)):
+        obj = types.SimpleNamespace(name="big", material=material)
+        spacing = field_spacing(np.array([[0.0] * 3, [size_mm] * 3]), material, 2.0)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _check_resolution(obj, spacing, 2.0)
+        assert [issubclass(w.category, CoarseFieldWarning) for w in caught] == [True] * warned, size_mm
+    assert spacing < 1.0 and field_spacing(np.array([[0.0] * 3, [1e5] * 3]), material, 2.0) > 100.0

@@ -28,6 +28,7 @@ channel.
 """
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import drjit as dr
@@ -132,6 +133,22 @@ def field_spacing(bounds_mm, material, walk_depth):
     return max(min(wanted, auto_spacing(material, float(np.max(size)))), finest)
 
 
+class CoarseFieldWarning(UserWarning):
+    """The field's grid, at its node cap, is far coarser than ``walk_depth`` asks: walks end much deeper, or never."""
+
+
+def _check_resolution(obj, spacing, walk_depth):
+    """Warn (:class:`CoarseFieldWarning`) where the grid's cells are over :data:`CELLS_PER_DEPTH` times coarser than
+    ``walk_depth`` asks (a large object: at most :data:`MAX_FIELD_NODES` nodes): walks end only about a cell deep."""
+    asked = walk_depth * float(np.min(1.0 / obj.material.sigma_t_prime))
+    if spacing > CELLS_PER_DEPTH * asked:
+        warnings.warn(CoarseFieldWarning(
+            f"translucent shape {obj.name!r}: the diffusion field's grid (at most {MAX_FIELD_NODES:.0e} nodes) has "
+            f"{spacing:.3g} mm cells, so walks end in it only about {spacing:.3g} mm deep, not {asked:.3g} mm "
+            f"(walk_depth {walk_depth:g}): most walk to their end; walk_depth 0 (the transport) or auto suits an "
+            "object this large"), stacklevel=3)
+
+
 def field_only(params, mode):
     """Whether the surface samples serve the field alone: walks end in it (``mode``, a
     :class:`~.params.RenderMode`: every camera path walks, so no pixel reads a transport's exitance) and no AOV asks
@@ -177,7 +194,9 @@ def diffusion_field(objects, transports, mode, unit_mm, note=None):
             continue
         step = (lambda text, k=k, obj=obj: note(f"the field of {obj.name!r} ({k + 1}/{len(objects)}): {text}")) \
             if note is not None else (lambda text: None)
-        made = _object_field(obj, transport, field_spacing(obj.bbox_mm, obj.material, mode.walk_depth), step)
+        spacing = field_spacing(obj.bbox_mm, obj.material, mode.walk_depth)
+        _check_resolution(obj, spacing, mode.walk_depth)
+        made = _object_field(obj, transport, spacing, step)
         if made is not None:
             fields.append(made)
     return DiffusionField(fields, mode.walk_depth, unit_mm) if fields else None
