@@ -12,7 +12,7 @@ estimator of Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
       w_i = f_i / mean_j p_j,                                                                           (Eq. W1)
 
   ``f_i`` the path's contribution in channel ``i`` and ``p_j`` its density had channel ``j`` drawn it (the one-sample
-  balance heuristic over channels), tracked as the ratios ``p_j / f_i`` (a 3 x 3 matrix per lane: :mod:`.spectral_mis`);
+  balance heuristic over channels), tracked as the ratios ``p_j / f_i`` (rank one: two products, :mod:`.spectral_mis`);
 * at a scattering vertex, **next-event estimation** through null boundaries and the media between: to one emitter
   the scene chooses where the walk is ``volpathmis``'s estimator (an explicit ``walk_depth`` inf: its cost per
   sample), else to every emitter of the scene (one sample each; past :data:`~.path_tracer.MAX_EMITTERS_SUMMED`
