@@ -899,6 +899,7 @@ def test_render_denoise_writes_a_denoised_image_beside_the_raw_one(tmp_path, sce
     assert result.exit_code == 0 and "correlates the pixels' noise" in result.output, result.output
 
 
+@pytest.mark.slow
 def test_the_fields_steps_show_in_the_progress(tmp_path):
     """Issue 62: a finite --walk-depth showed nothing inside its field's stage (10-36 s); each step is said now."""
     result = run("render", "--mesh", "bunny", "--material", "wholemilk", "--size-mm", 20, "--width", 16, "--height", 16,
