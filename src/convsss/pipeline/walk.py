@@ -1,9 +1,10 @@
 """The random walk: paths through the translucent objects' own media, the path tracer's volumetric estimator.
 
-Where diffusion does not hold (thin parts, back light, few mean free paths across, low albedo) the light under the
-surface is followed: a path refracted into an object walks through its interior medium (Mitsuba's, its own phase
-function) and leaves it through the boundary's BSDF. With nothing cut short this is a volumetric path tracer, the
-estimator of Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectral MIS), but for surface offsets:
+Where diffusion does not hold (thin parts, back light, objects a few mean free paths across, low albedo, anisotropic
+scattering) the light under the surface is found by following it: a path that refracts into an object walks through
+its interior medium (Mitsuba's: homogeneous or heterogeneous, its own phase function) and leaves it through the
+boundary's BSDF, then goes on as any path does. With nothing cut short this is a volumetric path tracer, the same
+estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectral MIS) but for a surface offset:
 
 * **free flights** drawn by one channel's extinction per path (the hero channel ``c``, uniform over R, G, B), and
   in a heterogeneous medium by its majorant with null collisions (delta tracking);
@@ -33,20 +34,25 @@ estimator of Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
 
       F_t(eta, mu) (mu / mu') e^{-sigma_t s (mu / mu' - 1)}                                              (Eq. W4)
 
-  times the straight ray's own transmittance: Fresnel, the beam's compression and, in a homogeneous medium, the
-  refracted path's length ``s mu / mu'`` (as Eq. S2, :mod:`.path_tracer`: exact for a plane boundary). Where walks
-  end in the field and in ``auto``'s walks every emitter but the environment lights the vertex this way, and a path
-  refracting out straight after a scattering vertex no longer counts such an emitter when it hits it: behind a
-  smooth boundary an area light is found by light sampling, not by the chance hits that make ``volpathmis`` noisy.
-  The environment is left to those hits, which find it well (Eq. W4 read 0.97-0.99 on a potato bunny);
-* a medium may be **weighed by other coefficients than it is drawn by** (:attr:`RandomWalk.evaluated`, a fit's
-  trial): flights drawn by the medium's own extinction, only ``f_i`` takes the trial's ``e^{-sigma_t t}`` and
-  ``sigma_s`` (unbiased for any trial), so that the image moves smoothly with the trial, each channel by its own;
+  times the straight ray's own transmittance: the Fresnel transmittance, the beam's compression and, in a
+  homogeneous medium, the length of the refracted path inside, ``s mu / mu'`` (all three as in Eq. S2,
+  :mod:`.path_tracer`: exact for a plane boundary, an approximation elsewhere). Where walks end in the field
+  (``walk_depth`` finite) and in ``auto``'s walks every emitter but the environment lights the vertex this way, and
+  a path that refracts out of the object straight after a scattering vertex no longer counts such an emitter when
+  it hits it: behind a smooth boundary an area light is then found by light sampling, not by the chance hits that
+  make ``volpathmis`` noisy there. The environment (an infinite emitter) is left to those hits, which find it well
+  (Eq. W4 for it read 0.97-0.99 of the reference on a potato bunny, at 3.5 times the hits' relative MSE);
+* a medium may be **weighed by other coefficients than it is drawn by** (:attr:`RandomWalk.evaluated`: a fit's
+  trial material, :mod:`convsss.fitting`): its flights and events are drawn by the medium's own extinction as always
+  and only ``f_i`` takes the trial's transmittance ``e^{-sigma_t t}`` and ``sigma_s`` (Eq. W1's densities unchanged:
+  unbiased for any trial, noisier as its extinction falls below the drawn one), so that the image moves smoothly
+  with the trial, each channel's with its own coefficients only;
 * a flight from a surface starts on it (Mitsuba offsets a spawned ray's origin by ``(1 + |p|) 1.8e-4``, more than a
   mean free path in dense media or far from the origin: they went dark, issue 62); that origin only finds surfaces;
-* Russian roulette on the path's weight from ``rr_depth`` (inside a medium at albedo ~1 the odds are the weight,
-  capped at 1: no fireflies), ``max_depth`` bounces (on opaque surfaces, and one per walk at its first scattering,
-  as the transport's exitance is one: 2 adds the light under the surface) and at most :data:`MAX_WALK` events.
+* Russian roulette on the path's weight from ``rr_depth`` (not at albedo ~1 inside a medium, where it would only add
+  fireflies: there the roulette's survival odds are the weight itself, capped at 1), ``max_depth`` bounces (on
+  opaque surfaces, and one per walk through a medium at its first scattering, as the transport's exitance is one:
+  1 shows the emitters alone, 2 adds the light under the surface) and at most :data:`MAX_WALK` events in media.
 """
 
 from dataclasses import dataclass
@@ -62,7 +68,10 @@ mi = import_mitsuba()
 
 #: The most scattering events a path makes inside media (the walk's cap; a path past it ends there).
 MAX_WALK = 100_000
-def _interaction(source):  # a plain Interaction3f of a surface or medium interaction (the last scattering)
+
+
+def _interaction(source):
+    """A plain :class:`mitsuba.Interaction3f` of a surface or medium interaction (where the last scattering was)."""
     it = dr.zeros(mi.Interaction3f, dr.width(source.p))
     it.t, it.time, it.wavelengths, it.p = source.t, source.time, source.wavelengths, source.p
     it.n = source.n if isinstance(source, mi.SurfaceInteraction3f) else dr.zeros(mi.Normal3f, dr.width(source.p))
@@ -71,9 +80,10 @@ def _interaction(source):  # a plain Interaction3f of a surface or medium intera
 
 @dataclass
 class _Path:
-    """The state of a batch of walks between events (the loop's variables, a Dr.Jit PyTree): the ray, its medium, the
-    last surface hit and scattering vertex, the hero channel, the radiance found, Eq. W1's density ratios (as drawn,
-    and as light sampling would have drawn the last vertex's light), the boundaries' eta, flags and counts."""
+    """The state of a batch of walks between events (the loop's variables, a Dr.Jit PyTree): the ray and the medium
+    it is in, the last surface hit, the last scattering vertex, the hero channel, the radiance found, the density
+    ratios of Eq. W1 (as drawn, and as light sampling would have drawn the last vertex's light), the product of the
+    boundaries' eta, and the flags and counts the steps read."""
 
     ray: object
     medium: object
@@ -158,7 +168,8 @@ class RandomWalk(ShadowRays):
 
     @property
     def stats(self):
-        """The counts, the mean scattering events per path and the shares of paths ended in the field and capped."""
+        """The counts and what they say: mean scattering events per path, the share of paths ended in the field and
+        cut by the cap."""
         c, paths = self.counts, max(self.counts["paths"], 1)
         return {**c, "events_per_path": c["events"] / paths, "ended_share": c["ended"] / paths,
                 "capped_share": c["capped"] / paths}
@@ -203,7 +214,9 @@ class RandomWalk(ShadowRays):
         mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), path.channel, active_medium)
         ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid()] = mei.t
         intersect = path.needs_intersection & active_medium
-        skipped = dr.dot(path.offset, ray.d)  # from a surface: found from the offset origin, drawn from the surface
+        # From a surface, the flight starts on it; the surfaces are found from Mitsuba's offset origin, which lies
+        # (1 + |p|) x 1.8e-4 scene units off it: more than a mean free path in a dense medium, which had lost light.
+        skipped = dr.dot(path.offset, ray.d)
         hit = mi.Ray3f(ray.o + path.offset, ray.d, dr.maximum(ray.maxt - skipped, 0.0), ray.time, ray.wavelengths)
         si[intersect] = self.scene.ray_intersect(hit, intersect)
         si.t[intersect] += skipped
@@ -336,7 +349,8 @@ class RandomWalk(ShadowRays):
         return path
 
     def _evaluated(self, medium, active):
-        """Per lane in ``medium`` (where ``active``): weighed by :attr:`evaluated`'s ``sigma_t``, ``sigma_s``?"""
+        """Per lane in ``medium`` (where ``active``): whether its paths are weighed by :attr:`evaluated`'s
+        coefficients, and those ``sigma_t``, ``sigma_s`` (Color3f per scene unit; 0 elsewhere)."""
         n = dr.width(active)
         trial, sigma_t, sigma_s = dr.full(mi.Bool, False, n), dr.zeros(mi.Color3f, n), dr.zeros(mi.Color3f, n)
         for weighed, weighed_t, weighed_s in self.evaluated:

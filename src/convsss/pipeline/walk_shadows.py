@@ -26,9 +26,9 @@ def shadow_odds(transmittance):
 
 @dataclass
 class _Shadow:
-    """The state of a batch of the walk's shadow rays (a Dr.Jit PyTree): the ray, the distances to the light and
-    covered, its medium, the last surface hit, its Eq. W4 crossing, the density ratios as light sampling drew the light
-    and as the path's own sampling would have."""
+    """The state of a batch of the walk's shadow rays (a Dr.Jit PyTree): the ray, the distance to the light and the
+    distance covered, the medium it is in, the last surface hit, where it crossed a boundary by Eq. W4, and the
+    density ratios as light sampling drew the light and as the path's own sampling would have."""
 
     ray: object
     max_dist: object
