@@ -17,8 +17,6 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
-
 from .errors import ConvsssError
 from .files import check_outputs, json_ready, output_paths, text_writer, write_files
 from .pipeline.parts import samples_per_pixel
@@ -113,10 +111,10 @@ def render_to_files(source, output, *, spp=None, sensor=None, seed=0, mask=False
 
         check_pixel_filter(camera)
     spp = _spp(spp, source, camera)
-    film = np.array(integ.render(scene, camera, seed=seed, spp=spp), dtype=np.float64)
+    from .pipeline.aovs import film_channels
+
     aovs = integ.aov_names()
-    image = np.concatenate([film[..., :3], film[..., film.shape[2] - len(aovs):]], axis=2)  # RGB(A) + AOVs
-    channels = ["R", "G", "B", *aovs]
+    image, channels = film_channels(integ.render(scene, camera, seed=seed, spp=spp), aovs)
     seconds.update(integ.stats["seconds"])
     if denoise:
         from .denoise import denoise as denoised_image

@@ -29,6 +29,7 @@ def bench_denoise(width=128, spp=16, reference_spp=512):
     """One row per scene: raw and denoised error, their ratio, the means' ratio, the reference's own error."""
     import convsss
     from convsss.denoise import denoise, guides_of
+    from convsss.pipeline.aovs import film_channels
 
     from .scenes import scene_dict
     from .walk import WALK_SCENES
@@ -41,16 +42,14 @@ def bench_denoise(width=128, spp=16, reference_spp=512):
             d["sensor"]["film"]["rfilter"] = {"type": "box"}
             d["integrator"] = {"type": "convsss", "walk_depth": walk_depth, "aovs": aovs}
             loaded = mi.load_dict(d)
-            film = np.asarray(mi.render(loaded, seed=seed, spp=count), dtype=np.float64)
-            names = loaded.integrator().aov_names()
-            return film[..., :3], dict(zip(names, np.moveaxis(film[..., film.shape[2] - len(names):], -1, 0)))
+            return film_channels(mi.render(loaded, seed=seed, spp=count), loaded.integrator().aov_names())
 
-        ref, layers = render(float("inf"), reference_spp, 101, "mask")
-        ref2, _ = render(float("inf"), reference_spp, 202, "")
-        reference, inside = _blocks(ref), _blocks(layers["mask.Y"][..., None])[..., 0] > 0.999
-        raw, layers = render("auto", spp, 1, "albedo,normal")
-        channels = ["R", "G", "B", *layers]
-        film = np.concatenate([raw, np.stack(list(layers.values()), axis=-1)], axis=-1)
+        film, channels = render(float("inf"), reference_spp, 101, "mask")
+        ref, mask = film[..., :3], film[..., channels.index("mask.Y"), None]
+        ref2 = render(float("inf"), reference_spp, 202, "")[0]
+        reference, inside = _blocks(ref), _blocks(mask)[..., 0] > 0.999
+        film, channels = render("auto", spp, 1, "albedo,normal")
+        raw = film[..., :3]
         start = time.perf_counter()
         clean = denoise(raw, *guides_of(film, channels))
         seconds = time.perf_counter() - start

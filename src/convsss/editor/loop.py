@@ -24,17 +24,17 @@ class _Reply:
     """An edit's answer, handed from the render thread to the request thread that waits for it."""
 
     def __init__(self):
-        self._done, self.value, self.error = threading.Event(), None, None
+        self._done, self.error = threading.Event(), None
 
-    def set(self, value=None, error=None):
-        self.value, self.error = value, error
+    def set(self, error=None):
+        """The edit is done (published), or failed with ``error``."""
+        self.error = error
         self._done.set()
 
     def wait(self):
         self._done.wait()
         if self.error is not None:
             raise self.error
-        return self.value
 
 
 class RenderLoop:

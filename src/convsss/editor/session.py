@@ -38,6 +38,7 @@ from ..denoise import GUIDES, check_pixel_filter, denoise, guides_of
 from ..errors import ConvsssError
 from ..materials import Material, OpticallyThinWarning, catalog
 from ..materials import material as preset_material
+from ..pipeline.aovs import film_channels
 from ..pipeline.params import IgnoredParameterWarning, with_aovs
 from ..pipeline.parts import pass_seed, samples_per_pixel
 from ..profiles import ScaledProfile, TabulatedProfile, material_from_color
@@ -127,6 +128,7 @@ class EditSession:
     version : int              one more per edit rendered (the first render is 1)
     last : dict                the last edit's render: ``rebuilt`` ("prepare" or "transport") and ``seconds`` per stage
     passes : Passes            the passes averaged into :attr:`image` since the last edit
+    channels : list of str     their channels: R, G, B and the AOVs (the denoiser's guides among them)
     image : numpy.ndarray      (H, W, 3) their mean
     """
 
@@ -380,7 +382,8 @@ class EditSession:
         image = self.integrator.render_prepared(spp=self.spp, seed=self.seed)
         seconds = dict(self.integrator.stats["seconds"])
         t = time.perf_counter()
-        self.passes = Passes(self._channels(image))
+        film, self.channels = film_channels(image, self.integrator.aov_names())
+        self.passes = Passes(film)
         self.version += 1
         self.last = {"rebuilt": rebuilt, "seconds": seconds}
         self._publish()
@@ -395,15 +398,9 @@ class EditSession:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", OpticallyThinWarning)
             image = self.integrator.render_prepared(spp=self.spp, seed=pass_seed(self.seed, self.passes.count))
-        self.passes.add(self._channels(image))
+        self.passes.add(film_channels(image, self.integrator.aov_names())[0])
         self._publish()
         return self.state()
-
-    def _channels(self, film):
-        """R, G, B and the AOVs (the guides among them) of a rendered film (without its alpha)."""
-        film = np.asarray(film, dtype=np.float64)
-        aovs = len(self.integrator.aov_names())
-        return np.concatenate([film[..., :3], film[..., film.shape[2] - aovs:]], axis=2)
 
     @property
     def image(self):
@@ -435,8 +432,7 @@ class EditSession:
         key = (state["version"], state["spp_reached"])
         with self._denoise_lock:
             if self._denoised is None or self._denoised[0] != key:
-                channels = ["R", "G", "B", *self.integrator.aov_names()]
-                self._denoised = (key, self._encode(denoise(film[..., :3], *guides_of(film, channels))))
+                self._denoised = (key, self._encode(denoise(film[..., :3], *guides_of(film, self.channels))))
             return self._denoised[1]
 
 

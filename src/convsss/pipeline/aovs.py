@@ -39,6 +39,14 @@ from .params import aov_channels
 mi = import_mitsuba()
 
 
+def film_channels(film, names):
+    """A rendered film (H, W, C: R, G, B, an alpha where the film has one, then the channels of the AOVs, ``names``
+    as :meth:`~.integrator.ConvsssIntegrator.aov_names` gives them) as float64 (H, W, 3 + len(names)) without its
+    alpha, and its channels' names: ``["R", "G", "B", *names]``."""
+    film = np.asarray(film, dtype=np.float64)
+    return np.concatenate([film[..., :3], film[..., film.shape[2] - len(names):]], axis=2), ["R", "G", "B", *names]
+
+
 def _channels(color):
     return [mi.Float(color[0]), mi.Float(color[1]), mi.Float(color[2])]
 

@@ -181,7 +181,7 @@ def planned_bytes(obj, mode):
     return int(nodes * (BYTES_PER_NODE + FIELD_BYTES_PER_NODE))
 
 
-def diffusion_field(objects, transports, mode, unit_mm, note=None):
+def diffusion_field(objects, transports, mode, unit_mm, note=lambda text: None):
     """The fields of ``objects`` (:class:`DiffusionField`) from their ``transports``' samples (their irradiance,
     profile and view frame); None where ``walk_depth`` is 0 or inf, or no object has a field (a heterogeneous
     interior has none: its walks go on to their end). ``note(text)`` hears each step (the progress display: a field
@@ -192,8 +192,10 @@ def diffusion_field(objects, transports, mode, unit_mm, note=None):
     for k, (obj, transport) in enumerate(zip(objects, transports)):
         if transport is None or obj.classes is not None or not len(transport.samples):
             continue
-        step = (lambda text, k=k, obj=obj: note(f"the field of {obj.name!r} ({k + 1}/{len(objects)}): {text}")) \
-            if note is not None else (lambda text: None)
+
+        def step(text, k=k, obj=obj):
+            note(f"the field of {obj.name!r} ({k + 1}/{len(objects)}): {text}")
+
         spacing = field_spacing(obj.bbox_mm, obj.material, mode.walk_depth)
         _check_resolution(obj, spacing, mode.walk_depth)
         made = _object_field(obj, transport, spacing, step)
