@@ -21,6 +21,7 @@ from ..errors import ConvsssError
 from ..media.named import register_medium
 from ..signals import mitsuba_render
 from ..timing import StageTimer
+from . import derivatives
 from .params import (
     IgnoredParameterWarning,
     RenderParams,
@@ -41,11 +42,6 @@ VARIANT = mi.variant()
 #: One render stage at a time in a process: an integrator's prepared state and the thread count the shading sets in
 #: Dr.Jit are shared, so a second thread waits for the first (two threads rendering one scene at once failed).
 RENDER_LOCK = threading.RLock()
-#: What :meth:`ConvsssIntegrator.render_forward` and :meth:`~ConvsssIntegrator.render_backward` say (issue 63).
-NO_DERIVATIVES = ("the convsss integrator has no derivatives yet: dr.forward/dr.backward through its render would give "
-                  "wrong gradients (Mitsuba's generic fallback differentiates every walk event, the roulette and the "
-                  "densities included), so it refuses them; mi.render with it renders images, and Mitsuba's "
-                  "prbvolpath differentiates a volumetric path tracer meanwhile")
 #: Camera paths per kernel of random walks (:meth:`ConvsssIntegrator._shade`): Ctrl-C waits for at most one.
 WALK_LANES = 1 << 20
 
@@ -233,13 +229,22 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             elif self.params.passes > 1:  # the passes' states were their shares'
                 session.prepared, session.tracer, session.aovs = kept
 
+    @_one_at_a_time
     def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
-        """Refused (:data:`NO_DERIVATIVES`): never a wrong gradient, never an abort."""
-        raise ConvsssError(NO_DERIVATIVES)
+        """The image's derivative along the gradients set on ``params`` (Mitsuba's ``dr.forward`` through
+        ``mi.render``): a walked render's with respect to its homogeneous media's ``albedo`` and ``sigma_t``
+        (:mod:`.derivatives`); anything else refused in one line."""
+        check_render_call(scene, sensor, seed, spp)
+        sensor = scene.sensors()[sensor] if isinstance(sensor, int) else sensor
+        return derivatives.render_forward(self, scene, params, sensor, as_seed(seed), spp)
 
+    @_one_at_a_time
     def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
-        """Refused (:data:`NO_DERIVATIVES`): never a wrong gradient, never an abort."""
-        raise ConvsssError(NO_DERIVATIVES)
+        """``grad_in`` (the image's gradient) into the gradients of ``params`` (Mitsuba's ``dr.backward`` through
+        ``mi.render``), as :meth:`render_forward` differentiates (:mod:`.derivatives`)."""
+        check_render_call(scene, sensor, seed, spp)
+        sensor = scene.sensors()[sensor] if isinstance(sensor, int) else sensor
+        derivatives.render_backward(self, scene, params, grad_in, sensor, as_seed(seed), spp)
 
     @_one_at_a_time
     def render_prepared(self, spp=0, seed=None, develop=True, evaluate=True):

@@ -60,6 +60,7 @@ from dataclasses import dataclass
 import drjit as dr
 
 from ..backend import import_mitsuba
+from .derivatives import accumulate, add_length, add_scattering, zero_scores
 from .shadow import classify
 from .spectral_mis import ended, mis, ones, update, where
 from .walk_shadows import ShadowRays, shadow_odds
@@ -107,10 +108,13 @@ class _Path:
     scatterings: object
     ended: object
     active: object
+    scores: tuple  # per differentiated medium, d log f / d sigma_t and d sigma_s so far (Eq. G1)
+    jacobian: tuple  # and the radiance's derivatives (Eq. G2)
 
     @staticmethod
-    def start(sampler, ray, medium):
-        """Walks along ``ray`` from ``medium`` (None: from outside every medium), the hero channel drawn."""
+    def start(sampler, ray, medium, differentiated=()):
+        """Walks along ``ray`` from ``medium`` (None: from outside every medium), the hero channel drawn; with the
+        ``differentiated`` media's scores (:mod:`.derivatives`)."""
         n = dr.width(ray)
         start = dr.zeros(mi.MediumPtr, n) if medium is None else dr.full(mi.MediumPtr, medium, n)
         return _Path(ray=mi.Ray3f(ray), medium=mi.MediumPtr(start), offset=dr.zeros(mi.Vector3f, n),
@@ -123,7 +127,8 @@ class _Path:
                      straight_out=dr.full(mi.Bool, False, n), valid=dr.full(mi.Bool, False, n),
                      depth=dr.zeros(mi.UInt32, n), walking=dr.full(mi.Bool, False, n),
                      events=dr.zeros(mi.UInt32, n), scatterings=dr.zeros(mi.UInt32, n),
-                     ended=dr.full(mi.Bool, False, n), active=dr.full(mi.Bool, True, n))
+                     ended=dr.full(mi.Bool, False, n), active=dr.full(mi.Bool, True, n),
+                     scores=zero_scores(differentiated, n), jacobian=zero_scores(differentiated, n))
 
 
 class RandomWalk(ShadowRays):
@@ -149,6 +154,8 @@ class RandomWalk(ShadowRays):
         #: ``(medium, sigma_t, sigma_s)`` of the homogeneous media whose paths are weighed by these coefficients
         #: (Color3f per scene unit) instead of the medium's own, which still draw them (module doc; a fit's trial).
         self.evaluated = []
+        #: The media whose coefficients the walk differentiates (Mitsuba media; :meth:`differentiate`).
+        self.differentiated = []
         #: Counts since :meth:`reset`: ``paths`` traced, scattering ``events`` in media, paths ``ended`` in the
         #: field (in some channel) and ``capped`` at :data:`MAX_WALK` events.
         self.counts = {}
@@ -163,6 +170,11 @@ class RandomWalk(ShadowRays):
         from now on, its own coefficients still drawing them (:attr:`evaluated`: a fit's trial material)."""
         self.evaluated = [(mi.MediumPtr(medium), sigma_t, sigma_s)]
 
+    def differentiate(self, media):
+        """From now on, :meth:`trace_derivatives` gives the radiance's derivatives with respect to ``media``'s
+        coefficients (Mitsuba's homogeneous media; [] for none: :mod:`.derivatives`)."""
+        self.differentiated = [mi.MediumPtr(m) for m in media]
+
     def reset(self):  # the counts (:attr:`counts`) start again
         self.counts = {"paths": 0, "events": 0, "ended": 0, "capped": 0}
 
@@ -174,24 +186,35 @@ class RandomWalk(ShadowRays):
         return {**c, "events_per_path": c["events"] / paths, "ended_share": c["ended"] / paths,
                 "capped_share": c["capped"] / paths}
 
-    @dr.syntax
     def trace(self, sampler, ray, medium=None):
         """Radiance (mi.Color3f) and first-hit mask (mi.Bool) of rays ``ray`` (camera rays, or rays from points in
         ``medium``, a Mitsuba medium they start in), drawing from ``sampler``: one symbolic loop, each pass an event
         of every path (a free flight in a medium, or a surface), in the steps below."""
-        path = _Path.start(sampler, ray, medium)
+        path = self._walk(sampler, ray, medium)
+        return path.result, path.valid
+
+    def trace_derivatives(self, sampler, ray, medium=None):
+        """:meth:`trace`'s radiance and mask, and the radiance's derivatives with respect to each of
+        :attr:`differentiated`'s ``sigma_t`` and ``sigma_s`` per channel (a tuple of Color3f, two per medium: Eq. G2 of
+        :mod:`.derivatives`)."""
+        path = self._walk(sampler, ray, medium)
+        return path.result, path.valid, path.jacobian
+
+    @dr.syntax
+    def _walk(self, sampler, ray, medium):
+        path = _Path.start(sampler, ray, medium, self.differentiated)
         while path.active:
             path = self._roulette(path, sampler)
             path, mei, in_medium, escaped, scatter = self._flight(path, sampler)
             path, scatter = self._field_ends(path, mei, scatter)
             path = self._scatter(path, mei, scatter, sampler)
             path = self._surface(path, in_medium, escaped, sampler)
-        dr.eval(path.result, path.valid, path.scatterings, path.ended, path.events)
+        dr.eval(path.result, path.valid, path.scatterings, path.ended, path.events, path.jacobian)
         self.counts["paths"] += dr.width(path.active)
         self.counts["events"] += int(dr.sum(mi.UInt64(path.scatterings))[0])
         self.counts["ended"] += int(dr.count(path.ended)[0])
         self.counts["capped"] += int(dr.count(path.events >= MAX_WALK)[0])
-        return path.result, path.valid
+        return path
 
     def _roulette(self, path, sampler):
         """Russian roulette on the path's weight, the odds the weight itself (eta^2: radiance's scaling across a
@@ -201,6 +224,10 @@ class RandomWalk(ShadowRays):
         roulette = path.active & ~path.last_null & (path.depth + path.events > self.rr_depth)
         path.active &= ~(roulette & (sampler.next_1d(path.active) >= q))
         path.ratios = update(path.ratios, q, 1.0, roulette)
+        # The survivors' 1/q weighs an emitter they hit next whichever technique Eq. W2 credits it to: the light
+        # sampled at the last vertex (before this roulette) too, else the two weights sum below 1 (it read 0.2 % low,
+        # its derivatives 3 %).
+        path.ratios_nee = update(path.ratios_nee, q, 1.0, roulette)
         path.last_null = dr.full(mi.Bool, False, dr.width(path.active))
         path.active &= (path.depth < self.max_depth) & (path.events < MAX_WALK) & dr.any(mis(path.ratios) != 0.0)
         return path
@@ -223,6 +250,8 @@ class RandomWalk(ShadowRays):
         path.offset[active_medium] = 0.0
         path.needs_intersection &= ~active_medium
         mei.t[active_medium & (si.t < mei.t)] = dr.inf
+        path.scores = add_length(path.scores, self.differentiated, medium, dr.minimum(mei.t, si.t) - mei.mint,
+                                 active_medium)  # Eq. G1
         spectral = active_medium & medium.has_spectral_extinction()
         trial, trial_t, trial_s = self._evaluated(medium, active_medium)
         spectral |= trial
@@ -255,8 +284,9 @@ class RandomWalk(ShadowRays):
         path.ratios_nee = update(path.ratios_nee, 1.0, null_probability, grey & null)
         ray.o[null] = mei.p
         si.t[null] = si.t - mei.t
-        path.ratios = update(path.ratios, 1.0 - null_probability, dr.select(trial, trial_s, mei.sigma_s),
-                              spectral & scatter)
+        sigma_s = dr.select(trial, trial_s, mei.sigma_s)
+        path.scores = add_scattering(path.scores, self.differentiated, medium, sigma_s, scatter)  # Eq. G1
+        path.ratios = update(path.ratios, 1.0 - null_probability, sigma_s, spectral & scatter)
         path.ratios = update(path.ratios, mei.sigma_t, mei.sigma_s, grey & scatter)
         return path, mei, active_medium, escaped, scatter
 
@@ -279,8 +309,8 @@ class RandomWalk(ShadowRays):
         phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
         path.valid |= scatter
         lit = scatter & (path.depth < self.max_depth)  # the vertex's light ends a path of depth + 1 segments
-        path.result = self._next_events(path.result, _interaction(mei), path.medium, path.ratios, path.channel,
-                                        sampler, lit, lambda d: phase.eval_pdf(phase_ctx, mei, d, lit))
+        path = self._next_events(path, _interaction(mei), sampler, lit,
+                                 lambda d: phase.eval_pdf(phase_ctx, mei, d, lit))
         path.ratios_nee = where(scatter, path.ratios, path.ratios_nee)
         wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
                                                    sampler.next_2d(scatter), scatter)
@@ -312,14 +342,15 @@ class RandomWalk(ShadowRays):
         radiance = emitter.eval(si, seen)
         # The light that Eq. W4 took at the last scattering vertex (an environment's it leaves to this hit).
         seen &= ~(path.straight_out & ~mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite))
-        path.result[seen] += dr.select(direct, mis(path.ratios), mis(path.ratios, path.ratios_nee)) * radiance
+        found = dr.select(direct, mis(path.ratios), mis(path.ratios, path.ratios_nee)) * radiance
+        path.result[seen] += found
+        path.jacobian = accumulate(path.jacobian, path.scores, found, seen)  # Eq. G2
         active_surface &= si.is_valid()
 
         ctx = mi.BSDFContext()
         bsdf = si.bsdf(ray)
         lit = active_surface & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth) & (path.depth + 1 < self.max_depth)
-        path.result = self._next_events(path.result, si, path.medium, path.ratios, path.channel, sampler, lit,
-                                        lambda d: bsdf.eval_pdf(ctx, si, si.to_local(d), lit))
+        path = self._next_events(path, si, sampler, lit, lambda d: bsdf.eval_pdf(ctx, si, si.to_local(d), lit))
         bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(active_surface), sampler.next_2d(active_surface),
                                       active_surface)
         active_surface &= bs.pdf > 0.0
@@ -359,16 +390,18 @@ class RandomWalk(ShadowRays):
             sigma_t[here], sigma_s[here] = weighed_t, weighed_s
         return trial, sigma_t, sigma_s
 
-    def _next_events(self, result, origin, medium, ratios, channel, sampler, active, evaluate):
-        """``result`` plus, where ``active``, the light of each of :attr:`lights` sampled from ``origin`` (a
-        scattering vertex or a surface in ``medium``) and weighed against the path's own sampling there by the
-        balance heuristic (Eq. W2); ``evaluate(direction)`` is that sampling's ``(value, pdf)``: the phase function's
-        or the BSDF's."""
+    def _next_events(self, path, origin, sampler, active, evaluate):
+        """``path`` with, where ``active``, the light of each of :attr:`lights` sampled from ``origin`` (a scattering
+        vertex or a surface in the path's medium) and weighed against the path's own sampling there by the balance
+        heuristic (Eq. W2) added to its radiance; ``evaluate(direction)`` is that sampling's ``(value, pdf)``: the
+        phase function's or the BSDF's."""
         for light in self.lights:
-            end_nee, end_uni, emitted, ds, crossed = self._emitter(origin, medium, ratios, channel, sampler, active,
-                                                                   light)
+            end_nee, end_uni, emitted, ds, crossed, scores = self._emitter(origin, path.medium, path.ratios,
+                                                                           path.channel, sampler, active, light)
             value, pdf = evaluate(ds.d)
             end_nee = update(end_nee, 1.0, value, active)
             end_uni = update(end_uni, dr.select(ds.delta | crossed, 0.0, pdf), value, active)
-            result[active] += mis(end_nee, end_uni) * emitted  # Eq. W2
-        return result
+            found = mis(end_nee, end_uni) * emitted  # Eq. W2
+            path.result[active] += found
+            path.jacobian = accumulate(path.jacobian, path.scores, found, active, scores)  # Eq. G2
+        return path

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import drjit as dr
 
 from ..backend import import_mitsuba
+from .derivatives import add_length, zero_scores
 from .irradiance import fresnel_transmittance, refracted_cosine
 from .spectral_mis import mis, update
 
@@ -40,6 +41,7 @@ class _Shadow:
     with_nee: tuple
     with_uni: tuple
     active: object
+    scores: tuple  # the differentiated media's d log f / d sigma_t (and d sigma_s: 0) along it (Eq. G1)
 
 
 class ShadowRays:
@@ -51,8 +53,8 @@ class ShadowRays:
         """Next-event estimation from ``origin`` (an interaction in ``medium``): a sample of emitter ``light`` (None:
         one the scene chooses) and its shadow ray through null boundaries and the media between (a ratio-tracking
         transmittance, every channel's density kept); ``(ratios as light sampling drew it, as the path's own sampling
-        would, emitted L, the sample, where it crossed a smooth boundary by Eq. W4)`` (no path's own sampling reaches
-        the light that way)."""
+        would, emitted L, the sample, where it crossed a smooth boundary by Eq. W4, its scores)`` (no path's own
+        sampling reaches the light that way; the scores: Eq. G1 of :mod:`.derivatives`)."""
         if light is None:
             ds, weight = self.scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
         else:
@@ -67,13 +69,13 @@ class ShadowRays:
         shadow = _Shadow(ray=ray, max_dist=mi.Float(ray.maxt), medium=medium, total=dr.zeros(mi.Float, n),
                          si=dr.zeros(mi.SurfaceInteraction3f, n), needs_intersection=dr.full(mi.Bool, True, n),
                          crossed=dr.full(mi.Bool, False, n), with_nee=update(ratios, ds.pdf, 1.0, active),
-                         with_uni=ratios, active=active)
+                         with_uni=ratios, active=active, scores=zero_scores(self.differentiated, n))
         while shadow.active:
             remaining = shadow.max_dist - shadow.total
             shadow, mei, in_medium, escaped, trial, trial_t = self._shadow_flight(shadow, sampler, channel, ds,
                                                                                   remaining)
             shadow = self._shadow_surface(shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining)
-        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed
+        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed, shadow.scores
 
     def _shadow_flight(self, shadow, sampler, channel, ds, remaining):
         """One step of the shadow ray in a medium (``remaining`` the distance left to the light): ratio tracking to
@@ -95,6 +97,7 @@ class ShadowRays:
         spectral = active_medium & (medium.has_spectral_extinction() | trial)
         grey = active_medium & ~spectral
         t = dr.minimum(remaining, dr.minimum(mei.t, si.t)) - mei.mint
+        shadow.scores = add_length(shadow.scores, self.differentiated, medium, t, active_medium)  # Eq. G1
         transmittance = dr.exp(-t * mei.combined_extinction)
         flight_pdf = dr.select((si.t < mei.t) | (mei.t > remaining), transmittance,
                                transmittance * mei.combined_extinction)
@@ -150,6 +153,8 @@ class ShadowRays:
         sigma_t[trial] = trial_t
         passed[through] = (fresnel_transmittance(eta, cos_out) * compression
                            * dr.exp(-sigma_t * shadow.total * (compression - 1.0)))  # Eq. W4
+        shadow.scores = add_length(shadow.scores, self.differentiated, medium, shadow.total * (compression - 1.0),
+                                   through)  # Eq. G1 of Eq. W4's refracted path
         shadow.with_nee = update(shadow.with_nee, 1.0, passed, active_surface)
         shadow.with_uni = update(shadow.with_uni, 1.0, passed, active_surface)
         ray[active_surface] = si.spawn_ray(ray.d)

@@ -1,0 +1,242 @@
+"""Derivatives of a walked render with respect to the media's coefficients (issue 63): ``mi.render`` under
+``dr.backward`` / ``dr.forward`` for a homogeneous medium's ``albedo`` and ``sigma_t``.
+
+The walk (:mod:`.walk`) estimates a pixel by a sum of contributions ``c = f / p``: ``f`` the path's throughput
+(transmittances, scattering coefficients, phase functions, BSDFs, the light), ``p`` the density it was drawn with
+(Eq. W1, W2). With ``p`` held fixed (the paths are the ones drawn; as in path replay backpropagation, Vicini,
+Speierer and Jakob 2021, every density, the hero channel, the roulette and the MIS weights are detached), the
+derivative of a contribution in channel ``i`` with respect to a medium's ``sigma_t`` or ``sigma_s`` in that channel is
+the contribution times the sum of its events' scores, ``d log f_i``:
+
+    d log f_i / d sigma_t,i = - (length travelled in the medium),   d log f_i / d sigma_s,i = 1 / sigma_s,i   (Eq. G1)
+
+per free flight and shadow-ray segment (``e^{-sigma_t t}``; Eq. W4's refracted path ``e^{-sigma_t s mu/mu'}`` adds
+``-s (mu/mu' - 1)``) and per scattering vertex (``sigma_s``). The walk carries each differentiated medium's two
+scores per channel beside its ratios and adds ``c * scores`` to a per-sample Jacobian wherever it adds ``c`` to its
+radiance:
+
+    dL_i / d sigma_t,i = sum_c c_i D_t,i(c),   dL_i / d sigma_s,i = sum_c c_i D_s,i(c)                      (Eq. G2)
+
+the same estimator as a replay's ``sum_events score x (radiance still to come)``, in one pass. A channel's
+coefficients move that channel alone, so the Jacobian is diagonal: six numbers per medium and sample. The chain to
+what a user differentiates (``albedo``, ``sigma_t``: ``sigma_s = albedo sigma_t scale``) is Mitsuba's own, through
+the coefficients the medium returns with gradients on (:func:`render_backward`, :func:`render_forward`).
+
+Not differentiated (refused in one line, :func:`differentiated_media`): heterogeneous media (their grids need
+differential ratio tracking, Nimier-David et al. 2022: not built), the boundary's BSDF, the lights, the geometry;
+walks ended in the diffusion field and the transport (``walk_depth`` other than inf or ``auto``'s walks). A medium's
+``scale`` is not differentiable in Mitsuba.
+"""
+
+import math
+from contextlib import contextmanager
+
+import drjit as dr
+
+from ..backend import import_mitsuba
+from ..errors import ConvsssError
+from .parts import pass_seed, samples_per_pixel, shares
+
+mi = import_mitsuba()
+
+#: What a gradient through a render that does not walk is told.
+NOT_WALKED = ("derivatives through a convsss render are those of its random walk: render with walk_depth inf (or "
+              "auto where it walks); walks ended in the diffusion field and the transport have none")
+#: Camera samples per kernel of a differentiated render (as :data:`~.integrator.WALK_LANES`).
+LANES = 1 << 20
+
+
+# --- the scores the walk carries (Eq. G1, G2) ----------------------------------------------------------------------
+def zero_scores(media, n):
+    """Per lane, each of ``media``'s scores (``d log f / d sigma_t`` then ``d log f / d sigma_s``, Color3f): 0."""
+    return tuple(dr.zeros(mi.Color3f, n) for _ in range(2 * len(media)))
+
+
+def add_length(scores, media, medium, length, active):
+    """``scores`` after a distance ``length`` travelled in ``medium`` where ``active`` (Eq. G1: ``-length``)."""
+    out = list(scores)
+    for k, differentiated in enumerate(media):
+        out[2 * k] = dr.select(active & (medium == differentiated), out[2 * k] - length, out[2 * k])
+    return tuple(out)
+
+
+def add_scattering(scores, media, medium, sigma_s, active):
+    """``scores`` after a scattering vertex in ``medium`` of coefficient ``sigma_s`` where ``active`` (Eq. G1:
+    ``1 / sigma_s``; 0 in a channel whose ``sigma_s`` is 0: there the contribution, and its derivative here, is 0)."""
+    out = list(scores)
+    inverse = dr.select(sigma_s > 0.0, dr.rcp(sigma_s), 0.0)
+    for k, differentiated in enumerate(media):
+        here = active & (medium == differentiated)
+        out[2 * k + 1] = dr.select(here, out[2 * k + 1] + inverse, out[2 * k + 1])
+    return tuple(out)
+
+
+def accumulate(jacobian, scores, contribution, active, more=None):
+    """``jacobian`` plus ``contribution * scores`` (plus the shadow ray's own ``more``) where ``active`` (Eq. G2)."""
+    more = more or tuple(0.0 for _ in scores)
+    return tuple(dr.select(active, j + contribution * (s + m), j) for j, s, m in zip(jacobian, scores, more))
+
+
+# --- the parameters ------------------------------------------------------------------------------------------------
+def _ad_indices(value):
+    """The AD variable indices of a Dr.Jit value (its components', for a vector or a colour)."""
+    if dr.is_tensor_v(value):
+        value = value.array
+    if dr.depth_v(value) > 1:
+        return {i for component in value for i in _ad_indices(component)}
+    return {value.index_ad} if getattr(value, "index_ad", 0) else set()
+
+
+def differentiated_media(objects, params):
+    """The interior media of ``objects`` (translucent objects) whose ``albedo`` or ``sigma_t`` ``params`` (Mitsuba's
+    :class:`~mitsuba.SceneParameters`, or a dict) tracks gradients of; a one-line :class:`ConvsssError` for any other
+    parameter with gradients on (nothing else is differentiated: it would read 0) and for a heterogeneous medium's."""
+    supported, media = {}, []
+    for obj in objects:
+        medium = obj.shape.interior_medium()
+        if medium is None or any(medium == m for m in media):
+            continue
+        owned = mi.traverse(medium)
+        names = [k for k in owned.keys() if dr.grad_enabled(owned[k])]
+        if names and not medium.is_homogeneous():
+            raise ConvsssError(f"the medium of {obj.name!r} varies in space: its {', '.join(names)} have no "
+                               "derivatives in convsss (a homogeneous medium's albedo and sigma_t have)")
+        for name in names:
+            supported.update(dict.fromkeys(_ad_indices(owned[name]), name))
+        if names:
+            media.append(medium)
+    items = params.items() if hasattr(params, "items") else []
+    others = [k for k, v in items if dr.is_array_v(v) and dr.grad_enabled(v) and not _ad_indices(v) <= supported.keys()]
+    if others:
+        raise ConvsssError(f"{', '.join(others)}: convsss differentiates a translucent object's homogeneous medium "
+                           "(its albedo and sigma_t) and nothing else; disable gradients on these")
+    return media
+
+
+def _coefficients(medium):
+    """A homogeneous ``medium``'s ``(sigma_s, sigma_t)`` per scene unit, attached to its parameters' gradients."""
+    mei = dr.zeros(mi.MediumInteraction3f, 1)
+    with dr.resume_grad():
+        sigma_s, _, sigma_t = medium.get_scattering_coefficients(mei)
+    return sigma_s, sigma_t
+
+
+# --- the camera's samples and the film ---------------------------------------------------------------------------
+def camera_samples(scene, sensor, seed, spp):
+    """``spp`` camera samples per pixel of ``sensor``'s film (its crop, and its border where it samples one), drawn
+    with seed ``seed``: ``(sampler, rays, weights, film positions)``, the sampler to go on drawing from."""
+    film = sensor.film()
+    size = film.crop_size()
+    border = film.rfilter().border_size() if film.sample_border() else 0
+    size += 2 * border
+    sampler = sensor.sampler().clone()
+    sampler.set_sample_count(spp)
+    sampler.set_samples_per_wavefront(spp)
+    sampler.seed(seed, dr.prod(size) * spp)
+    index = dr.arange(mi.UInt32, dr.prod(size) * spp) // spp
+    pixel = mi.Vector2i(mi.Int32(index % size[0]), mi.Int32(index // size[0])) - border
+    pixel += mi.Vector2i(film.crop_offset())
+    position = mi.Vector2f(pixel) + sampler.next_2d()
+    scale = dr.rcp(mi.ScalarVector2f(film.crop_size()))
+    offset = -mi.ScalarVector2f(film.crop_offset()) * scale
+    aperture = sampler.next_2d() if sensor.needs_aperture_sample() else mi.Vector2f(0.5)
+    time = sensor.shutter_open() + sampler.next_1d() * sensor.shutter_open_time()
+    ray, weight = sensor.sample_ray_differential(time, 0.5, dr.fma(position, scale, offset), aperture)
+    splat = mi.Vector2f(pixel) if film.rfilter().is_box_filter() else position
+    return sampler, ray, weight, splat
+
+
+def _splat(film, channels, position, value):
+    """The film's image of per-sample ``value`` (Color3f) splatted at ``position`` (its AOVs 0)."""
+    block = film.create_block()
+    n = dr.width(value)
+    alpha = [dr.ones(mi.Float, n)] if mi.has_flag(film.flags(), mi.FilmFlags.Alpha) else []
+    zeros = [dr.zeros(mi.Float, n)] * (channels - 4 - len(alpha))
+    block.put(mi.Point2f(position), [value.x, value.y, value.z, *alpha, dr.ones(mi.Float, n), *zeros])
+    film.put_block(block)
+    return film.develop()
+
+
+# --- Mitsuba's render_backward / render_forward --------------------------------------------------------------------
+@contextmanager
+def _walked(integrator, scene, sensor, seed, params):
+    """``(walk, media)``: ``integrator`` prepared for ``scene`` seen by ``sensor`` (refused where it does not walk
+    to the end), its walk differentiating the media ``params`` tracks gradients of, while in the block."""
+    session = integrator.session
+    session.reuse(scene, sensor, seed)
+    walk = session.tracer.walk if session.tracer is not None else None
+    try:
+        if walk is None or walk.field is not None or session.mode.walk_depth != math.inf:
+            raise ConvsssError(NOT_WALKED)
+        media = differentiated_media(walk.objects, params)
+        walk.differentiate(media)
+        yield walk, media
+    finally:
+        if walk is not None:
+            walk.differentiate([])
+        if not session.keep:
+            session.release()
+
+
+def _parts(integrator, scene, sensor, seed, spp, walk):
+    """Per part of the render (at most :data:`LANES` samples, seed :func:`~.parts.pass_seed`): ``(film, positions,
+    weights, jacobian, share)`` of its camera samples, ``share`` its part of the samples per pixel."""
+    film = sensor.film()
+    pixels = math.prod(film.crop_size() + 2 * (film.rfilter().border_size() if film.sample_border() else 0))
+    spp = samples_per_pixel(spp, sensor)
+    film.prepare(integrator.aov_names())
+    for k, share in enumerate(shares(spp, most=max(1, LANES // pixels))):
+        with dr.suspend_grad():
+            sampler, ray, weight, position = camera_samples(scene, sensor, pass_seed(seed, k), share)
+            _, _, jacobian = walk.trace_derivatives(sampler, ray)
+        yield film, position, weight, jacobian, share / spp
+
+
+def _channels(integrator, film):
+    return film.base_channels_count() + len(integrator.aov_names())
+
+
+def render_backward(integrator, scene, params, grad_in, sensor, seed, spp):
+    """``grad_in`` (the loss's gradient with respect to the image) into the gradients of the differentiated media's
+    parameters: per sample its adjoint radiance (the film's splatting differentiated, as Mitsuba's integrators do),
+    times its Jacobian (Eq. G2), summed, then through the media's coefficients to their parameters."""
+    with _walked(integrator, scene, sensor, seed, params) as (walk, media):
+        totals = [dr.zeros(mi.Color3f, 1) for _ in range(2 * len(media))]
+        for film, position, weight, jacobian, share in _parts(integrator, scene, sensor, seed, spp, walk):
+            with dr.resume_grad():
+                adjoint = dr.full(mi.Color3f, 1.0, dr.width(position))
+                dr.enable_grad(adjoint)
+                image = _splat(film, _channels(integrator, film), position, adjoint * weight)
+                dr.set_grad(image, grad_in)
+                dr.enqueue(dr.ADMode.Backward, image)
+                dr.traverse(dr.ADMode.Backward)
+                adjoint = dr.grad(adjoint)
+            film.clear()
+            for i, j in enumerate(jacobian):
+                totals[i] += share * mi.Color3f(*[dr.sum(adjoint[c] * j[c]) for c in range(3)])
+            dr.eval(totals)
+    with dr.resume_grad():
+        for k, medium in enumerate(media):
+            sigma_s, sigma_t = _coefficients(medium)
+            dr.backward_from(dr.sum(sigma_t * totals[2 * k] + sigma_s * totals[2 * k + 1], axis=None))
+
+
+def render_forward(integrator, scene, params, sensor, seed, spp):
+    """The image's derivative along the parameters' gradients (``dr.set_grad``): each medium's coefficients' tangents
+    (Mitsuba's chain), times each sample's Jacobian (Eq. G2), splatted as the image is."""
+    with _walked(integrator, scene, sensor, seed, params) as (walk, media):
+        tangents = []
+        for medium in media:
+            with dr.resume_grad():
+                sigma_s, sigma_t = _coefficients(medium)
+                dr.forward_to(sigma_s, sigma_t)
+                tangents += [mi.Color3f(dr.grad(sigma_t)), mi.Color3f(dr.grad(sigma_s))]
+        image = 0.0
+        for film, position, weight, jacobian, share in _parts(integrator, scene, sensor, seed, spp, walk):
+            tangent = dr.zeros(mi.Color3f, dr.width(position))
+            for j, t in zip(jacobian, tangents):
+                tangent += j * t
+            image = image + _splat(film, _channels(integrator, film), position, tangent * weight) * share
+            film.clear()
+            dr.eval(image)
+    return image
