@@ -188,7 +188,8 @@ class _Problem:
     """The least-squares problem of a fit: its variables ``x`` (logit colour (3), log mfp (3), then log exposure and
     log(eta - 1) where fitted), the residuals of the render against ``target`` over the pixels ``inside``, each
     weighted by the target's value there (a relative error, floored at :data:`FLOOR` of the mean), and their
-    Jacobian by forward differences of ``STEP``, each channel's albedo at once, then each channel's mfp."""
+    Jacobian: where the render walks, the walk's own derivatives (:meth:`~convsss.forward.Forward.derivatives`), else
+    forward differences of ``STEP``, each channel's albedo at once, then each channel's mfp."""
 
     def __init__(self, forward, base, inside, target, fit_exposure, fit_eta, progress, block=1):
         self.forward, self.base, self.inside, self.progress = forward, base, inside, progress
@@ -269,8 +270,15 @@ class _Problem:
             moved_render = self.forward(material_of(a, m, e, self.base.name), drawn=material_of(albedo, mfp, eta))
             return (self.pool(moved_render) - here) * scale * self.weight / STEP
 
-        for block in (0, 3):  # every channel's alpha' at once, then every channel's mfp: the channels are apart
-            derivative = moved(block, 3)
+        if self.forward.walks:  # the walk's own derivatives (Eq. G2) and the variables' chain: no more renders
+            _, d_albedo, d_log_mfp = self.forward.derivatives(material_of(albedo, mfp, eta, self.base.name))
+            x_moved = x.copy()
+            x_moved[:3] += STEP
+            slope = (self.variables.decode(x_moved)[0] - albedo) / STEP  # d alpha' / d(the colour's logit)
+            blocks = (self.pool(d_albedo) * slope * scale * self.weight, self.pool(d_log_mfp) * scale * self.weight)
+        else:  # every channel's alpha' at once, then every channel's mfp: the channels are apart
+            blocks = (moved(0, 3), moved(3, 3))
+        for block, derivative in zip((0, 3), blocks):
             for c in range(3):
                 columns[:, c, block + c] = derivative[:, c]
         if self.fit_exposure:

@@ -55,6 +55,12 @@ class Forward:
     def _walked(self, material, drawn):
         """The random walk's render of ``material``, its paths drawn by the object's medium set to ``drawn`` (as near
         as the medium holds it: a grey one takes the channels' mean) and weighed by ``material``."""
+        self._weigh(material, drawn)
+        return np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
+
+    def _weigh(self, material, drawn):
+        """The object's medium set to ``drawn`` (:meth:`_walked`), its walks weighed by ``material``; returns the
+        medium's phase function's mean cosine."""
         import mitsuba as mi
 
         from .media.dicts import medium_parameters
@@ -67,7 +73,29 @@ class Forward:
         weighed = unreduced(material, g)
         sigma_t, sigma_s = (mi.Color3f(*(c * unit_mm).tolist()) for c in (weighed.sigma_t_prime, weighed.sigma_s_prime))
         self.integrator.walk.weigh(medium, sigma_t, sigma_s)
-        return np.array(self.integrator.render_prepared(spp=self.spp, seed=self.seed), dtype=np.float64)[..., :3]
+        return g
+
+    def derivatives(self, material):
+        """Where the render walks: its image of ``material`` and the image's derivatives with respect to the reduced
+        albedo and the log of the reduced mean free path (mm) per channel, three (H, W, 3) arrays from one walk of the
+        same samples (:func:`~convsss.pipeline.derivatives.derivative_images`: no finite-difference renders)."""
+        from .pipeline.derivatives import derivative_images
+
+        start = time.perf_counter()
+        g = self._weigh(material, material)
+        image, d_sigma_t, d_sigma_s = derivative_images(self.integrator, self.obj.shape.interior_medium(), self.spp,
+                                                        self.seed)
+        unit_mm = self.integrator.params.unit_mm
+        mfp = 1.0 / material.sigma_t_prime
+        sigma = unreduced(material, g)
+        # sigma_s = alpha' / (mfp (1 - g)), sigma_a = (1 - alpha') / mfp, sigma_t = sigma_s + sigma_a (per mm)
+        ds_dalbedo = 1.0 / (mfp * (1.0 - g))
+        dt_dalbedo = ds_dalbedo - 1.0 / mfp
+        d_albedo = (d_sigma_t * dt_dalbedo + d_sigma_s * ds_dalbedo) * unit_mm
+        d_log_mfp = -(d_sigma_t * sigma.sigma_t_prime + d_sigma_s * sigma.sigma_s_prime) * unit_mm
+        self.evaluations += 1
+        self.seconds += time.perf_counter() - start
+        return image, d_albedo, d_log_mfp
 
     def _transported(self, material):
         """The transport's render of ``material`` (the reuse of :mod:`convsss.fitting`'s docstring)."""

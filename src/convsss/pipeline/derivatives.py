@@ -32,6 +32,7 @@ import math
 from contextlib import contextmanager
 
 import drjit as dr
+import numpy as np
 
 from ..backend import import_mitsuba
 from ..errors import ConvsssError
@@ -180,7 +181,7 @@ def _walked(integrator, scene, sensor, seed, params):
 
 def _parts(integrator, scene, sensor, seed, spp, walk):
     """Per part of the render (at most :data:`LANES` samples, seed :func:`~.parts.pass_seed`): ``(film, positions,
-    weights, jacobian, share)`` of its camera samples, ``share`` its part of the samples per pixel."""
+    weights, (radiance, jacobian), share)`` of its camera samples, ``share`` its part of the samples per pixel."""
     film = sensor.film()
     pixels = math.prod(film.crop_size() + 2 * (film.rfilter().border_size() if film.sample_border() else 0))
     spp = samples_per_pixel(spp, sensor)
@@ -188,8 +189,8 @@ def _parts(integrator, scene, sensor, seed, spp, walk):
     for k, share in enumerate(shares(spp, most=max(1, LANES // pixels))):
         with dr.suspend_grad():
             sampler, ray, weight, position = camera_samples(scene, sensor, pass_seed(seed, k), share)
-            _, _, jacobian = walk.trace_derivatives(sampler, ray)
-        yield film, position, weight, jacobian, share / spp
+            radiance, _, jacobian = walk.trace_derivatives(sampler, ray)
+        yield film, position, weight, (radiance, jacobian), share / spp
 
 
 def _channels(integrator, film):
@@ -202,7 +203,7 @@ def render_backward(integrator, scene, params, grad_in, sensor, seed, spp):
     times its Jacobian (Eq. G2), summed, then through the media's coefficients to their parameters."""
     with _walked(integrator, scene, sensor, seed, params) as (walk, media):
         totals = [dr.zeros(mi.Color3f, 1) for _ in range(2 * len(media))]
-        for film, position, weight, jacobian, share in _parts(integrator, scene, sensor, seed, spp, walk):
+        for film, position, weight, (_, jacobian), share in _parts(integrator, scene, sensor, seed, spp, walk):
             with dr.resume_grad():
                 adjoint = dr.full(mi.Color3f, 1.0, dr.width(position))
                 dr.enable_grad(adjoint)
@@ -232,7 +233,7 @@ def render_forward(integrator, scene, params, sensor, seed, spp):
                 dr.forward_to(sigma_s, sigma_t)
                 tangents += [mi.Color3f(dr.grad(sigma_t)), mi.Color3f(dr.grad(sigma_s))]
         image = 0.0
-        for film, position, weight, jacobian, share in _parts(integrator, scene, sensor, seed, spp, walk):
+        for film, position, weight, (_, jacobian), share in _parts(integrator, scene, sensor, seed, spp, walk):
             tangent = dr.zeros(mi.Color3f, dr.width(position))
             for j, t in zip(jacobian, tangents):
                 tangent += j * t
@@ -240,3 +241,24 @@ def render_forward(integrator, scene, params, sensor, seed, spp):
             film.clear()
             dr.eval(image)
     return image
+
+
+def derivative_images(integrator, medium, spp, seed):
+    """The prepared render of ``integrator`` (:meth:`~.integrator.ConvsssIntegrator.prepare`, walks to the end) and
+    its derivatives with respect to ``medium``'s ``sigma_t`` and ``sigma_s`` (per scene unit, or the coefficients the
+    walk weighs it by: :meth:`~.walk.RandomWalk.weigh`), per channel: three (H, W, 3) float64 arrays from the same
+    samples (Eq. G2; :mod:`convsss.fitting`'s Jacobian)."""
+    state, walk = integrator.prepared, integrator.session.tracer.walk
+    if walk is None or walk.field is not None or integrator.session.mode.walk_depth != math.inf:
+        raise ConvsssError(NOT_WALKED)
+    images = [0.0, 0.0, 0.0]
+    walk.differentiate([medium])
+    try:
+        for film, position, weight, (radiance, jacobian), share in _parts(integrator, state.scene, state.sensor, seed,
+                                                                          spp, walk):
+            for k, value in enumerate((radiance, *jacobian)):
+                images[k] = images[k] + _splat(film, _channels(integrator, film), position, value * weight) * share
+                film.clear()
+    finally:
+        walk.differentiate([])
+    return tuple(np.array(image, dtype=np.float64)[..., :3] for image in images)

@@ -34,6 +34,7 @@ import numpy as np
 from ..backend import import_mitsuba
 from ..errors import ConvsssError
 from ..fresnel import same_eta
+from ..materials import OpticallyThinWarning
 from ..timing import StageTimer
 from .aovs import FirstHitAOVs
 from .camera import check_camera, first_hits, sensor_frame
@@ -185,8 +186,11 @@ class RenderSession:
         """What the camera sees, whatever the seed: the translucent objects, the view frame, each object's points
         seen through the pixel centres, and the sampling plan (one-line errors before anything is drawn)."""
         p = self.params
-        objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders,
-                                           lights_inside=p.walk_depth in ("auto", math.inf))
+        with warnings.catch_warnings():
+            if p.walk_depth == math.inf:  # walks to the end: how well diffusion holds is nobody's concern
+                warnings.simplefilter("ignore", OpticallyThinWarning)
+            objects = find_translucent_objects(mi, scene, p.unit_mm, p.profile, p.profile_total, p.orders,
+                                               lights_inside=p.walk_depth in ("auto", math.inf))
         mode = render_mode(p, objects)  # resolved here, once: the plan carries it (prepare renders with it)
         if p.walk_depth == "auto" and not mode.walks:  # the transport after all
             check_lights_outside(mi, scene, objects, p.unit_mm)
