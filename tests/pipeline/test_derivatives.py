@@ -211,3 +211,78 @@ def test_roulette_keeps_the_estimate_and_its_derivatives(mi):
         means.append((np.mean(per_seed, axis=0), np.std(per_seed, axis=0) / np.sqrt(len(per_seed))))
     (a, a_error), (b, b_error) = means
     assert np.all(np.abs(a - b) < 4 * np.hypot(a_error, b_error)), (a, b, a_error, b_error)
+
+
+def _grid_scene(mi, grid, sigma_t_grid=False):
+    """The unit sphere of a heterogeneous medium: an albedo ``gridvolume`` over its box and a constant sigma_t (or a
+    grid of it)."""
+    T = mi.ScalarTransform4f
+    box = T().translate([-1.1, -1.1, -1.1]).scale(2.2)
+    sigma_t = ({"type": "gridvolume", "grid": mi.VolumeGrid(np.full((2, 2, 2, 1), 0.5, np.float32)), "to_world": box}
+               if sigma_t_grid else {"type": "constvolume", "value": {"type": "rgb", "value": [0.3, 0.6, 1.0]},
+                                     "to_world": box})
+    return mi.load_dict({
+        "type": "scene", "integrator": {"type": "convsss", "walk_depth": "inf", "rr_depth": 10**6},
+        "sensor": {"type": "perspective", "fov": 30.0,
+                   "to_world": T().look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": RES, "height": RES, "rfilter": {"type": "box"}},
+                   "sampler": {"type": "independent", "sample_count": 4}},
+        "sphere": {"type": "sphere", "radius": 1.0, "bsdf": {"type": "null"},
+                   "interior": {"type": "heterogeneous", "scale": 6.0, "sigma_t": sigma_t,
+                                "albedo": {"type": "gridvolume", "grid": mi.VolumeGrid(grid), "to_world": box}}},
+        "light": {"type": "constant"}})
+
+
+def test_an_albedo_grid_s_gradient_is_the_derivative_of_the_walk(mi):
+    """A heterogeneous medium's albedo (a 4^3 RGB gridvolume, sigma_t constant): dr.backward of the image's sum (the
+    walks replayed, Eq. G3) along a random direction of the grid equals central differences of the same walks on the
+    same samples (measured 49.6139 against 49.6138)."""
+    import drjit as dr
+
+    grid = (0.6 + 0.35 * np.random.default_rng(1).random((4, 4, 4, 3))).astype(np.float32)
+    scene = _grid_scene(mi, grid)
+    params, key, spp, seed = mi.traverse(scene), "sphere.interior_medium.albedo.data", 8, 7
+    dr.enable_grad(params[key])
+    params.update()
+    image = mi.render(scene, params, seed=0, seed_grad=seed, spp=spp)
+    dr.backward(dr.sum(dr.ravel(image[..., :3])))
+    gradient = np.array(dr.grad(params[key]), dtype=np.float64)
+    dr.disable_grad(params[key])
+    params.update()
+    walk, sensor = _walk(mi, scene)
+    direction = np.random.default_rng(3).standard_normal(grid.shape)
+
+    def total(values):
+        params[key] = mi.TensorXf(values.astype(np.float32))
+        params.update()
+        sampler, ray, _, _ = camera_samples(scene, sensor, seed, spp)
+        return float(np.array(walk.trace(sampler, ray)[0], dtype=np.float64).sum()) / spp  # a pixel: its samples' mean
+
+    h = 1e-3
+    differences = (total(grid + h * direction) - total(grid - h * direction)) / (2 * h)
+    assert np.count_nonzero(gradient) > gradient.size // 2  # the corners of the grid lie outside the sphere
+    assert float(np.sum(gradient * direction)) == pytest.approx(differences, rel=2e-3)
+
+
+@pytest.mark.parametrize("case", ["sigma_t grid", "forward"])
+def test_what_an_albedo_grid_does_not_give_is_refused(mi, case):
+    """A varying extinction (differential ratio tracking is not built) and dr.forward of an albedo grid: one line."""
+    import drjit as dr
+
+    grid = np.full((2, 2, 2, 3), 0.8, np.float32)
+    scene = _grid_scene(mi, grid, sigma_t_grid=case == "sigma_t grid")
+    params, key = mi.traverse(scene), "sphere.interior_medium.albedo.data"
+    dr.enable_grad(params[key])
+    params.update()
+    image = mi.render(scene, params, spp=1)
+    with pytest.raises(Exception) as raised:
+        if case == "forward":
+            dr.forward(params[key])
+        else:
+            dr.backward(dr.mean(dr.ravel(image)))
+    chain, error = [], raised.value
+    while error is not None:
+        chain.append(str(error))
+        error = error.__cause__ or error.__context__
+    wanted = "ratio tracking" if case == "sigma_t grid" else "dr.forward through a heterogeneous medium's albedo"
+    assert any(wanted in message for message in chain), chain

@@ -1,5 +1,6 @@
 """Derivatives of a walked render with respect to the media's coefficients (issue 63): ``mi.render`` under
-``dr.backward`` / ``dr.forward`` for a homogeneous medium's ``albedo`` and ``sigma_t``.
+``dr.backward`` / ``dr.forward`` for a homogeneous medium's ``albedo`` and ``sigma_t``, and ``dr.backward`` for a
+heterogeneous medium's ``albedo`` (a ``gridvolume``: textures from photographs) where its ``sigma_t`` is constant.
 
 The walk (:mod:`.walk`) estimates a pixel by a sum of contributions ``c = f / p``: ``f`` the path's throughput
 (transmittances, scattering coefficients, phase functions, BSDFs, the light), ``p`` the density it was drawn with
@@ -22,10 +23,16 @@ coefficients move that channel alone, so the Jacobian is diagonal: six numbers p
 what a user differentiates (``albedo``, ``sigma_t``: ``sigma_s = albedo sigma_t scale``) is Mitsuba's own, through
 the coefficients the medium returns with gradients on (:func:`render_backward`, :func:`render_forward`).
 
-Not differentiated (refused in one line, :func:`differentiated_media`): heterogeneous media (their grids need
-differential ratio tracking, Nimier-David et al. 2022: not built), the boundary's BSDF, the lights, the geometry;
-walks ended in the diffusion field and the transport (``walk_depth`` other than inf or ``auto``'s walks). A medium's
-``scale`` is not differentiable in Mitsuba.
+A heterogeneous medium's albedo differs from one scattering vertex to the next, so no per-sample Jacobian holds its
+parameters: its walks are walked twice on the same random numbers (path replay backpropagation), the second time
+with each sample's radiance ``L`` and adjoint ``dLoss/dL`` known, each scattering vertex sending its score times the
+radiance still to come to the albedo there through Mitsuba's AD (Eq. G3, :func:`replay_scattering`).
+
+Not differentiated (refused in one line, :func:`differentiated_media`): an extinction that varies in space (a
+``sigma_t`` grid: it needs differential ratio tracking, Nimier-David et al. 2022, not built), ``dr.forward`` of a
+heterogeneous albedo, the boundary's BSDF, the lights, the geometry; walks ended in the diffusion field and the
+transport (``walk_depth`` other than inf or ``auto``'s walks). A medium's ``scale`` is not differentiable in
+Mitsuba. A channel whose ``sigma_s`` is exactly 0 reads a gradient of 0 there (its score divides by it).
 """
 
 import math
@@ -78,6 +85,26 @@ def accumulate(jacobian, scores, contribution, active, more=None):
     return tuple(dr.select(active, j + contribution * (s + m), j) for j, s, m in zip(jacobian, scores, more))
 
 
+def replay_scattering(replayed, medium, mei, result, active):
+    """At a scattering vertex ``mei`` in ``medium`` (where ``active``) of a replayed walk (``replayed``: the media,
+    the adjoint radiance and the radiance per lane, :attr:`~.walk.RandomWalk.replayed`), the vertex's share of the
+    albedo's gradient: its score ``d log sigma_s`` times the adjoint radiance still to come, the whole radiance less
+    ``result`` (what the path found before the vertex), sent to the parameters of ``sigma_s`` there:
+
+        dL/d theta += adjoint . (L - L_before) d log sigma_s(x) / d theta                                    (Eq. G3)
+    """
+    media, adjoint, total = replayed
+    here = dr.zeros(mi.Bool, dr.width(active))
+    for replayed_medium in media:
+        here |= medium == replayed_medium
+    here &= active
+    with dr.resume_grad():
+        sigma_s = medium.get_scattering_coefficients(mei, here)[0]
+        held = dr.detach(sigma_s)
+        weight = dr.select(here & (held > 0.0), adjoint * (total - result) / held, 0.0)
+        dr.backward_from(sigma_s * weight)
+
+
 # --- the parameters ------------------------------------------------------------------------------------------------
 def _ad_indices(value):
     """The AD variable indices of a Dr.Jit value (its components', for a vector or a colour)."""
@@ -89,29 +116,35 @@ def _ad_indices(value):
 
 
 def differentiated_media(objects, params):
-    """The interior media of ``objects`` (translucent objects) whose ``albedo`` or ``sigma_t`` ``params`` (Mitsuba's
-    :class:`~mitsuba.SceneParameters`, or a dict) tracks gradients of; a one-line :class:`ConvsssError` for any other
-    parameter with gradients on (nothing else is differentiated: it would read 0) and for a heterogeneous medium's."""
-    supported, media = {}, []
+    """``(media, replayed)``: the interior media of ``objects`` (translucent objects) whose parameters ``params``
+    (Mitsuba's :class:`~mitsuba.SceneParameters`, or a dict) tracks gradients of, homogeneous ones (their ``albedo``
+    and ``sigma_t``: Eq. G1's scores) and heterogeneous ones of a constant ``sigma_t`` (their ``albedo``, a
+    ``gridvolume`` or a constant: replayed, :func:`render_backward`). A one-line :class:`ConvsssError` for any other
+    parameter with gradients on (nothing else is differentiated: it would read 0), a varying extinction's."""
+    supported, media, replayed = {}, [], []
     for obj in objects:
         medium = obj.shape.interior_medium()
-        if medium is None or any(medium == m for m in media):
+        if medium is None or any(medium == m for m in media + replayed):
             continue
         owned = mi.traverse(medium)
         names = [k for k in owned.keys() if dr.grad_enabled(owned[k])]
-        if names and not medium.is_homogeneous():
-            raise ConvsssError(f"the medium of {obj.name!r} varies in space: its {', '.join(names)} have no "
-                               "derivatives in convsss (a homogeneous medium's albedo and sigma_t have)")
+        if not names:
+            continue
+        if not medium.is_homogeneous() and ("sigma_t.data" in owned or any(n.startswith("sigma_t") for n in names)):
+            raise ConvsssError(f"the medium of {obj.name!r} varies in space: the derivatives of its {', '.join(names)} "
+                               "are not built (an extinction that varies needs differential ratio tracking; convsss "
+                               "differentiates a homogeneous medium's albedo and sigma_t, and a heterogeneous one's "
+                               "albedo where its sigma_t is constant)")
         for name in names:
             supported.update(dict.fromkeys(_ad_indices(owned[name]), name))
-        if names:
-            media.append(medium)
+        (media if medium.is_homogeneous() else replayed).append(medium)
     items = params.items() if hasattr(params, "items") else []
     others = [k for k, v in items if dr.is_array_v(v) and dr.grad_enabled(v) and not _ad_indices(v) <= supported.keys()]
     if others:
-        raise ConvsssError(f"{', '.join(others)}: convsss differentiates a translucent object's homogeneous medium "
-                           "(its albedo and sigma_t) and nothing else; disable gradients on these")
-    return media
+        raise ConvsssError(f"{', '.join(others)}: convsss differentiates a translucent object's medium (a homogeneous "
+                           "one's albedo and sigma_t, a heterogeneous one's albedo) and nothing else; disable "
+                           "gradients on these")
+    return media, replayed
 
 
 def _coefficients(medium):
@@ -169,9 +202,9 @@ def _walked(integrator, scene, sensor, seed, params):
     try:
         if walk is None or walk.field is not None or session.mode.walk_depth != math.inf:
             raise ConvsssError(NOT_WALKED)
-        media = differentiated_media(walk.objects, params)
+        media, replayed = differentiated_media(walk.objects, params)
         walk.differentiate(media)
-        yield walk, media
+        yield walk, media, replayed
     finally:
         if walk is not None:
             walk.differentiate([])
@@ -179,9 +212,12 @@ def _walked(integrator, scene, sensor, seed, params):
             session.release()
 
 
-def _parts(integrator, scene, sensor, seed, spp, walk):
+def _parts(integrator, scene, sensor, seed, spp, walk, adjoint_of=None):
     """Per part of the render (at most :data:`LANES` samples, seed :func:`~.parts.pass_seed`): ``(film, positions,
-    weights, (radiance, jacobian), share)`` of its camera samples, ``share`` its part of the samples per pixel."""
+    weights, radiance, jacobian, adjoint, share)`` of its camera samples, ``share`` its part of the samples per pixel,
+    ``adjoint`` the adjoint radiance per sample ``adjoint_of(film, positions, weights)`` gives (None without), times
+    the share. Where the walk replays (:attr:`~.walk.RandomWalk.replayed`), each part is walked twice on the same random
+    numbers: first for its radiance, then with the radiance and the adjoint (Eq. G3)."""
     film = sensor.film()
     pixels = math.prod(film.crop_size() + 2 * (film.rfilter().border_size() if film.sample_border() else 0))
     spp = samples_per_pixel(spp, sensor)
@@ -189,33 +225,52 @@ def _parts(integrator, scene, sensor, seed, spp, walk):
     for k, share in enumerate(shares(spp, most=max(1, LANES // pixels))):
         with dr.suspend_grad():
             sampler, ray, weight, position = camera_samples(scene, sensor, pass_seed(seed, k), share)
+            adjoint = None if adjoint_of is None else adjoint_of(film, position, weight) * (share / spp)
+            if walk.replayed is not None:
+                replayed, walk.replayed = walk.replayed[0], None
+                total, _ = walk.trace(sampler.clone(), ray)
+                walk.replayed = (replayed, adjoint, total)
             radiance, _, jacobian = walk.trace_derivatives(sampler, ray)
-        yield film, position, weight, (radiance, jacobian), share / spp
+        yield film, position, weight, radiance, jacobian, adjoint, share / spp
 
 
 def _channels(integrator, film):
     return film.base_channels_count() + len(integrator.aov_names())
 
 
+def _adjoint(integrator, film, position, weight, grad_in):
+    """Per sample, the adjoint radiance: ``grad_in`` (the image's gradient) through the film's splatting of the
+    samples at ``position`` with ``weight`` (differentiated, as Mitsuba's integrators do)."""
+    with dr.resume_grad():
+        adjoint = dr.full(mi.Color3f, 1.0, dr.width(position))
+        dr.enable_grad(adjoint)
+        image = _splat(film, _channels(integrator, film), position, adjoint * weight)
+        dr.set_grad(image, grad_in)
+        dr.enqueue(dr.ADMode.Backward, image)
+        dr.traverse(dr.ADMode.Backward)
+        adjoint = dr.grad(adjoint)
+    film.clear()
+    return adjoint
+
+
 def render_backward(integrator, scene, params, grad_in, sensor, seed, spp):
     """``grad_in`` (the loss's gradient with respect to the image) into the gradients of the differentiated media's
-    parameters: per sample its adjoint radiance (the film's splatting differentiated, as Mitsuba's integrators do),
-    times its Jacobian (Eq. G2), summed, then through the media's coefficients to their parameters."""
-    with _walked(integrator, scene, sensor, seed, params) as (walk, media):
+    parameters: per sample its adjoint radiance (:func:`_adjoint`), times its Jacobian (Eq. G2), summed, then through
+    the homogeneous media's coefficients to their parameters. A heterogeneous medium's albedo varies from one
+    scattering vertex to the next: its walks are replayed (path replay backpropagation, Vicini, Speierer and Jakob
+    2021), each vertex sending its score times the adjoint radiance still to come to the albedo there (Eq. G3,
+    :meth:`~.walk.RandomWalk.replay_scattering`)."""
+    with _walked(integrator, scene, sensor, seed, params) as (walk, media, replayed):
         totals = [dr.zeros(mi.Color3f, 1) for _ in range(2 * len(media))]
-        for film, position, weight, (_, jacobian), share in _parts(integrator, scene, sensor, seed, spp, walk):
-            with dr.resume_grad():
-                adjoint = dr.full(mi.Color3f, 1.0, dr.width(position))
-                dr.enable_grad(adjoint)
-                image = _splat(film, _channels(integrator, film), position, adjoint * weight)
-                dr.set_grad(image, grad_in)
-                dr.enqueue(dr.ADMode.Backward, image)
-                dr.traverse(dr.ADMode.Backward)
-                adjoint = dr.grad(adjoint)
-            film.clear()
-            for i, j in enumerate(jacobian):
-                totals[i] += share * mi.Color3f(*[dr.sum(adjoint[c] * j[c]) for c in range(3)])
-            dr.eval(totals)
+        walk.replayed = (replayed, None, None) if replayed else None
+        try:
+            for _, _, _, _, jacobian, adjoint, _ in _parts(integrator, scene, sensor, seed, spp, walk,
+                                                           lambda *splat: _adjoint(integrator, *splat, grad_in)):
+                for i, j in enumerate(jacobian):
+                    totals[i] += mi.Color3f(*[dr.sum(adjoint[c] * j[c]) for c in range(3)])
+                dr.eval(totals)
+        finally:
+            walk.replayed = None
     with dr.resume_grad():
         for k, medium in enumerate(media):
             sigma_s, sigma_t = _coefficients(medium)
@@ -225,7 +280,10 @@ def render_backward(integrator, scene, params, grad_in, sensor, seed, spp):
 def render_forward(integrator, scene, params, sensor, seed, spp):
     """The image's derivative along the parameters' gradients (``dr.set_grad``): each medium's coefficients' tangents
     (Mitsuba's chain), times each sample's Jacobian (Eq. G2), splatted as the image is."""
-    with _walked(integrator, scene, sensor, seed, params) as (walk, media):
+    with _walked(integrator, scene, sensor, seed, params) as (walk, media, replayed):
+        if replayed:
+            raise ConvsssError("dr.forward through a heterogeneous medium's albedo is not built: dr.backward gives "
+                               "its gradient")
         tangents = []
         for medium in media:
             with dr.resume_grad():
@@ -233,7 +291,7 @@ def render_forward(integrator, scene, params, sensor, seed, spp):
                 dr.forward_to(sigma_s, sigma_t)
                 tangents += [mi.Color3f(dr.grad(sigma_t)), mi.Color3f(dr.grad(sigma_s))]
         image = 0.0
-        for film, position, weight, (_, jacobian), share in _parts(integrator, scene, sensor, seed, spp, walk):
+        for film, position, weight, _, jacobian, _, share in _parts(integrator, scene, sensor, seed, spp, walk):
             tangent = dr.zeros(mi.Color3f, dr.width(position))
             for j, t in zip(jacobian, tangents):
                 tangent += j * t
@@ -254,8 +312,8 @@ def derivative_images(integrator, medium, spp, seed):
     images = [0.0, 0.0, 0.0]
     walk.differentiate([medium])
     try:
-        for film, position, weight, (radiance, jacobian), share in _parts(integrator, state.scene, state.sensor, seed,
-                                                                          spp, walk):
+        for film, position, weight, radiance, jacobian, _, share in _parts(integrator, state.scene, state.sensor,
+                                                                           seed, spp, walk):
             for k, value in enumerate((radiance, *jacobian)):
                 images[k] = images[k] + _splat(film, _channels(integrator, film), position, value * weight) * share
                 film.clear()

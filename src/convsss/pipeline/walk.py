@@ -60,7 +60,7 @@ from dataclasses import dataclass
 import drjit as dr
 
 from ..backend import import_mitsuba
-from .derivatives import accumulate, add_length, add_scattering, zero_scores
+from .derivatives import accumulate, add_length, add_scattering, replay_scattering, zero_scores
 from .shadow import classify
 from .spectral_mis import ended, mis, ones, update, where
 from .walk_shadows import ShadowRays, shadow_odds
@@ -156,6 +156,9 @@ class RandomWalk(ShadowRays):
         self.evaluated = []
         #: The media whose coefficients the walk differentiates (Mitsuba media; :meth:`differentiate`).
         self.differentiated = []
+        #: ``(media, adjoint, radiance)`` while a walk is replayed for a heterogeneous medium's albedo (Eq. G3 of
+        #: :mod:`.derivatives`), else None.
+        self.replayed = None
         #: Counts since :meth:`reset`: ``paths`` traced, scattering ``events`` in media, paths ``ended`` in the
         #: field (in some channel) and ``capped`` at :data:`MAX_WALK` events.
         self.counts = {}
@@ -308,6 +311,8 @@ class RandomWalk(ShadowRays):
         phase = mei.medium.phase_function()
         phase[~scatter] = dr.zeros(mi.PhaseFunctionPtr)
         path.valid |= scatter
+        if self.replayed is not None:
+            replay_scattering(self.replayed, path.medium, mei, path.result, scatter)  # Eq. G3
         lit = scatter & (path.depth < self.max_depth)  # the vertex's light ends a path of depth + 1 segments
         path = self._next_events(path, _interaction(mei), sampler, lit,
                                  lambda d: phase.eval_pdf(phase_ctx, mei, d, lit))
