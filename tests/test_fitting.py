@@ -57,7 +57,8 @@ def test_where_the_default_render_walks_the_fit_walks_and_the_closed_loop_recove
     no Russian roulette), fitted from albedo x 0.8 and mfp x 2: each render draws its paths by its own material and
     the Jacobian is the walk's own derivative on its paths (Forward.derivatives), so the fit finds the material to
     the walks' jumps (paths that cross the boundary as the material moves). Measured at 32^2: 0.11 % (albedo),
-    0.7 % (mfp) in 35 walks; held to 0.5 % and 3 %. The transport's forward model is some per cent off on this object: it fails here."""
+    0.7 % (mfp) in 35 walks; held to 0.5 % and 3 %. The transport's forward model is some per cent off on this
+    object: it fails here."""
     from convsss.fitting import NO_ROULETTE
     from convsss.scene.quick import demo_mesh, quick_scene
 
