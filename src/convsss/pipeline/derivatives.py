@@ -1,6 +1,7 @@
 """Derivatives of a walked render with respect to the media's coefficients (issue 63): ``mi.render`` under
 ``dr.backward`` / ``dr.forward`` for a homogeneous medium's ``albedo`` and ``sigma_t``, and ``dr.backward`` for a
-heterogeneous medium's ``albedo`` (a ``gridvolume``: textures from photographs) where its ``sigma_t`` is constant.
+heterogeneous medium's ``albedo`` (a ``gridvolume``: textures from photographs) where its ``sigma_t`` is constant and
+for a rough dielectric boundary's roughness (``alpha``, ``alpha_u``, ``alpha_v``).
 
 The walk (:mod:`.walk`) estimates a pixel by a sum of contributions ``c = f / p``: ``f`` the path's throughput
 (transmittances, scattering coefficients, phase functions, BSDFs, the light), ``p`` the density it was drawn with
@@ -26,17 +27,20 @@ the coefficients the medium returns with gradients on (:func:`render_backward`, 
 A heterogeneous medium's albedo differs from one scattering vertex to the next, so no per-sample Jacobian holds its
 parameters: its walks are walked twice on the same random numbers (path replay backpropagation), the second time
 with each sample's radiance ``L`` and adjoint ``dLoss/dL`` known, each scattering vertex sending its score times the
-radiance still to come to the albedo there through Mitsuba's AD (Eq. G3, :func:`replay_scattering`).
+radiance still to come to the albedo there through Mitsuba's AD (Eq. G3, :func:`replay_scattering`); a rough
+boundary's roughness the same way, at each event its BSDF weighs (:func:`replay_bsdf`).
 
 Not differentiated (refused in one line, :func:`differentiated_media`): an extinction that varies in space (a
 ``sigma_t`` grid: it needs differential ratio tracking, Nimier-David et al. 2022, not built), ``dr.forward`` of a
-heterogeneous albedo, the boundary's BSDF, the lights, the geometry; walks ended in the diffusion field and the
-transport (``walk_depth`` other than inf or ``auto``'s walks). A medium's ``scale`` is not differentiable in
-Mitsuba. A channel whose ``sigma_s`` is exactly 0 reads a gradient of 0 there (its score divides by it).
+heterogeneous albedo or a roughness, the boundary's index (it bends the paths), the lights, the geometry; walks
+ended in the diffusion field and the transport (``walk_depth`` other than inf or ``auto``'s walks). A medium's
+``scale`` is not differentiable in Mitsuba. A channel whose ``sigma_s`` is exactly 0 reads a gradient of 0 there
+(its score divides by it).
 """
 
 import math
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 import drjit as dr
 import numpy as np
@@ -85,24 +89,54 @@ def accumulate(jacobian, scores, contribution, active, more=None):
     return tuple(dr.select(active, j + contribution * (s + m), j) for j, s, m in zip(jacobian, scores, more))
 
 
-def replay_scattering(replayed, medium, mei, result, active):
-    """At a scattering vertex ``mei`` in ``medium`` (where ``active``) of a replayed walk (``replayed``: the media,
-    the adjoint radiance and the radiance per lane, :attr:`~.walk.RandomWalk.replayed`), the vertex's share of the
+@dataclass
+class Replay:
+    """What a replayed walk needs (:attr:`~.walk.RandomWalk.replayed`): the heterogeneous ``media`` whose albedo and
+    the boundaries' ``bsdfs`` whose roughness it differentiates, and per lane the ``adjoint`` radiance and the
+    ``radiance`` of the first walk (None in that walk)."""
+
+    media: list
+    bsdfs: list
+    adjoint: object = None
+    radiance: object = None
+
+
+def _among(pointer, pointers, active):
+    here = dr.zeros(mi.Bool, dr.width(active))
+    for other in pointers:
+        here |= pointer == other
+    return here & active
+
+
+def _send(factor, rest, adjoint, active):
+    """Eq. G3 at one event: ``factor`` (attached, per channel) times ``adjoint . rest / factor`` (detached)."""
+    held = dr.detach(factor)
+    dr.backward_from(factor * dr.select(active & (held > 0.0), adjoint * rest / held, 0.0))
+
+
+def replay_scattering(replay, medium, mei, result, active):
+    """At a scattering vertex ``mei`` in ``medium`` (where ``active``) of a replayed walk, the vertex's share of the
     albedo's gradient: its score ``d log sigma_s`` times the adjoint radiance still to come, the whole radiance less
     ``result`` (what the path found before the vertex), sent to the parameters of ``sigma_s`` there:
 
-        dL/d theta += adjoint . (L - L_before) d log sigma_s(x) / d theta                                    (Eq. G3)
-    """
-    media, adjoint, total = replayed
-    here = dr.zeros(mi.Bool, dr.width(active))
-    for replayed_medium in media:
-        here |= medium == replayed_medium
-    here &= active
+        dL/d theta += adjoint . (L - L_before) d log f(x) / d theta                                           (Eq. G3)
+
+    ``f`` the event's factor (here ``sigma_s``; at a rough boundary its BSDF: :func:`replay_bsdf`)."""
+    if not replay.media:
+        return
+    here = _among(medium, replay.media, active)
     with dr.resume_grad():
-        sigma_s = medium.get_scattering_coefficients(mei, here)[0]
-        held = dr.detach(sigma_s)
-        weight = dr.select(here & (held > 0.0), adjoint * (total - result) / held, 0.0)
-        dr.backward_from(sigma_s * weight)
+        _send(medium.get_scattering_coefficients(mei, here)[0], replay.radiance - result, replay.adjoint, here)
+
+
+def replay_bsdf(replay, bsdf, si, direction, rest, active):
+    """At a boundary ``si`` of a replayed walk, the share of its BSDF's roughness gradient (Eq. G3) of the light
+    ``rest`` that came (or will come) along ``direction`` (world space) through it, where ``active``."""
+    if not replay.bsdfs:
+        return
+    here = _among(bsdf, replay.bsdfs, active)
+    with dr.resume_grad():
+        _send(bsdf.eval(mi.BSDFContext(), si, si.to_local(direction), here), rest, replay.adjoint, here)
 
 
 # --- the parameters ------------------------------------------------------------------------------------------------
@@ -115,15 +149,27 @@ def _ad_indices(value):
     return {value.index_ad} if getattr(value, "index_ad", 0) else set()
 
 
+#: A boundary BSDF's parameters whose derivatives a replayed walk gives (its roughness).
+ROUGHNESS = ("alpha.value", "alpha_u.value", "alpha_v.value")
+
+
 def differentiated_media(objects, params):
-    """``(media, replayed)``: the interior media of ``objects`` (translucent objects) whose parameters ``params``
-    (Mitsuba's :class:`~mitsuba.SceneParameters`, or a dict) tracks gradients of, homogeneous ones (their ``albedo``
-    and ``sigma_t``: Eq. G1's scores) and heterogeneous ones of a constant ``sigma_t`` (their ``albedo``, a
-    ``gridvolume`` or a constant: replayed, :func:`render_backward`). A one-line :class:`ConvsssError` for any other
-    parameter with gradients on (nothing else is differentiated: it would read 0), a varying extinction's."""
-    supported, media, replayed = {}, [], []
+    """``(media, replay)``: the homogeneous interior media of ``objects`` (translucent objects) whose ``albedo`` or
+    ``sigma_t`` ``params`` (Mitsuba's :class:`~mitsuba.SceneParameters`, or a dict) tracks gradients of (Eq. G1's
+    scores), and a :class:`Replay` of the heterogeneous media of a constant ``sigma_t`` whose ``albedo`` (a
+    ``gridvolume`` or a constant) and the boundaries whose roughness it tracks (None if none). A one-line
+    :class:`ConvsssError` for any other parameter with gradients on (nothing else is differentiated: it would read 0),
+    a varying extinction's."""
+    supported, media, replayed, bsdfs = {}, [], [], []
     for obj in objects:
-        medium = obj.shape.interior_medium()
+        medium, bsdf = obj.shape.interior_medium(), obj.shape.bsdf()
+        if bsdf is not None and not any(bsdf == b for b in bsdfs):
+            owned = mi.traverse(bsdf)
+            names = [k for k in ROUGHNESS if k in owned.keys() and dr.grad_enabled(owned[k])]
+            for name in names:
+                supported.update(dict.fromkeys(_ad_indices(owned[name]), name))
+            if names:
+                bsdfs.append(bsdf)
         if medium is None or any(medium == m for m in media + replayed):
             continue
         owned = mi.traverse(medium)
@@ -142,9 +188,9 @@ def differentiated_media(objects, params):
     others = [k for k, v in items if dr.is_array_v(v) and dr.grad_enabled(v) and not _ad_indices(v) <= supported.keys()]
     if others:
         raise ConvsssError(f"{', '.join(others)}: convsss differentiates a translucent object's medium (a homogeneous "
-                           "one's albedo and sigma_t, a heterogeneous one's albedo) and nothing else; disable "
-                           "gradients on these")
-    return media, replayed
+                           "one's albedo and sigma_t, a heterogeneous one's albedo) and its boundary's roughness, and "
+                           "nothing else; disable gradients on these")
+    return media, (Replay(replayed, bsdfs) if replayed or bsdfs else None)
 
 
 def _coefficients(medium):
@@ -202,9 +248,9 @@ def _walked(integrator, scene, sensor, seed, params):
     try:
         if walk is None or walk.field is not None or session.mode.walk_depth != math.inf:
             raise ConvsssError(NOT_WALKED)
-        media, replayed = differentiated_media(walk.objects, params)
+        media, replay = differentiated_media(walk.objects, params)
         walk.differentiate(media)
-        yield walk, media, replayed
+        yield walk, media, replay
     finally:
         if walk is not None:
             walk.differentiate([])
@@ -227,9 +273,9 @@ def _parts(integrator, scene, sensor, seed, spp, walk, adjoint_of=None):
             sampler, ray, weight, position = camera_samples(scene, sensor, pass_seed(seed, k), share)
             adjoint = None if adjoint_of is None else adjoint_of(film, position, weight) * (share / spp)
             if walk.replayed is not None:
-                replayed, walk.replayed = walk.replayed[0], None
-                total, _ = walk.trace(sampler.clone(), ray)
-                walk.replayed = (replayed, adjoint, total)
+                replay, walk.replayed = walk.replayed, None
+                replay.radiance, _ = walk.trace(sampler.clone(), ray)
+                replay.adjoint, walk.replayed = adjoint, replay
             radiance, _, jacobian = walk.trace_derivatives(sampler, ray)
         yield film, position, weight, radiance, jacobian, adjoint, share / spp
 
@@ -260,9 +306,9 @@ def render_backward(integrator, scene, params, grad_in, sensor, seed, spp):
     scattering vertex to the next: its walks are replayed (path replay backpropagation, Vicini, Speierer and Jakob
     2021), each vertex sending its score times the adjoint radiance still to come to the albedo there (Eq. G3,
     :meth:`~.walk.RandomWalk.replay_scattering`)."""
-    with _walked(integrator, scene, sensor, seed, params) as (walk, media, replayed):
+    with _walked(integrator, scene, sensor, seed, params) as (walk, media, replay):
         totals = [dr.zeros(mi.Color3f, 1) for _ in range(2 * len(media))]
-        walk.replayed = (replayed, None, None) if replayed else None
+        walk.replayed = replay
         try:
             for _, _, _, _, jacobian, adjoint, _ in _parts(integrator, scene, sensor, seed, spp, walk,
                                                            lambda *splat: _adjoint(integrator, *splat, grad_in)):
@@ -280,10 +326,10 @@ def render_backward(integrator, scene, params, grad_in, sensor, seed, spp):
 def render_forward(integrator, scene, params, sensor, seed, spp):
     """The image's derivative along the parameters' gradients (``dr.set_grad``): each medium's coefficients' tangents
     (Mitsuba's chain), times each sample's Jacobian (Eq. G2), splatted as the image is."""
-    with _walked(integrator, scene, sensor, seed, params) as (walk, media, replayed):
-        if replayed:
-            raise ConvsssError("dr.forward through a heterogeneous medium's albedo is not built: dr.backward gives "
-                               "its gradient")
+    with _walked(integrator, scene, sensor, seed, params) as (walk, media, replay):
+        if replay is not None:
+            raise ConvsssError("dr.forward through a heterogeneous medium's albedo or a boundary's roughness is not "
+                               "built: dr.backward gives their gradients")
         tangents = []
         for medium in media:
             with dr.resume_grad():

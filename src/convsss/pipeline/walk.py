@@ -60,7 +60,7 @@ from dataclasses import dataclass
 import drjit as dr
 
 from ..backend import import_mitsuba
-from .derivatives import accumulate, add_length, add_scattering, replay_scattering, zero_scores
+from .derivatives import accumulate, add_length, add_scattering, replay_bsdf, replay_scattering, zero_scores
 from .shadow import classify
 from .spectral_mis import ended, mis, ones, update, where
 from .walk_shadows import ShadowRays, shadow_odds
@@ -156,8 +156,8 @@ class RandomWalk(ShadowRays):
         self.evaluated = []
         #: The media whose coefficients the walk differentiates (Mitsuba media; :meth:`differentiate`).
         self.differentiated = []
-        #: ``(media, adjoint, radiance)`` while a walk is replayed for a heterogeneous medium's albedo (Eq. G3 of
-        #: :mod:`.derivatives`), else None.
+        #: A :class:`~.derivatives.Replay` while a walk is replayed for a heterogeneous medium's albedo or a boundary's
+        #: roughness (Eq. G3 of :mod:`.derivatives`), else None.
         self.replayed = None
         #: Counts since :meth:`reset`: ``paths`` traced, scattering ``events`` in media, paths ``ended`` in the
         #: field (in some channel) and ``capped`` at :data:`MAX_WALK` events.
@@ -355,10 +355,14 @@ class RandomWalk(ShadowRays):
         ctx = mi.BSDFContext()
         bsdf = si.bsdf(ray)
         lit = active_surface & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth) & (path.depth + 1 < self.max_depth)
-        path = self._next_events(path, si, sampler, lit, lambda d: bsdf.eval_pdf(ctx, si, si.to_local(d), lit))
+        path = self._next_events(path, si, sampler, lit, lambda d: bsdf.eval_pdf(ctx, si, si.to_local(d), lit),
+                                 (bsdf, si))
         bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(active_surface), sampler.next_2d(active_surface),
                                       active_surface)
         active_surface &= bs.pdf > 0.0
+        if self.replayed is not None:  # Eq. G3: the light still to come through the sampled direction
+            replay_bsdf(self.replayed, bsdf, si, si.to_world(bs.wo), self.replayed.radiance - path.result,
+                        active_surface)
         path.eta[active_surface] *= bs.eta
         ray[active_surface] = si.spawn_ray(si.to_world(bs.wo))
         path.needs_intersection |= active_surface
@@ -395,11 +399,11 @@ class RandomWalk(ShadowRays):
             sigma_t[here], sigma_s[here] = weighed_t, weighed_s
         return trial, sigma_t, sigma_s
 
-    def _next_events(self, path, origin, sampler, active, evaluate):
+    def _next_events(self, path, origin, sampler, active, evaluate, surface=None):
         """``path`` with, where ``active``, the light of each of :attr:`lights` sampled from ``origin`` (a scattering
         vertex or a surface in the path's medium) and weighed against the path's own sampling there by the balance
         heuristic (Eq. W2) added to its radiance; ``evaluate(direction)`` is that sampling's ``(value, pdf)``: the
-        phase function's or the BSDF's."""
+        phase function's or the BSDF's (``surface``: ``(bsdf, si)``, for a replayed walk's Eq. G3)."""
         for light in self.lights:
             end_nee, end_uni, emitted, ds, crossed, scores = self._emitter(origin, path.medium, path.ratios,
                                                                            path.channel, sampler, active, light)
@@ -409,4 +413,6 @@ class RandomWalk(ShadowRays):
             found = mis(end_nee, end_uni) * emitted  # Eq. W2
             path.result[active] += found
             path.jacobian = accumulate(path.jacobian, path.scores, found, active, scores)  # Eq. G2
+            if self.replayed is not None and surface is not None:
+                replay_bsdf(self.replayed, *surface, ds.d, found, active)  # Eq. G3
         return path
