@@ -19,7 +19,8 @@ radiance:
 
     dL_i / d sigma_t,i = sum_c c_i D_t,i(c),   dL_i / d sigma_s,i = sum_c c_i D_s,i(c)                      (Eq. G2)
 
-the same estimator as a replay's ``sum_events score x (radiance still to come)``, in one pass. A channel's
+``D(c)`` the sums of Eq. G1 over the events before contribution ``c`` (its shadow ray's segments included): the same
+estimator as a replay's ``sum_events score x (radiance still to come)``, in one pass. A channel's
 coefficients move that channel alone, so the Jacobian is diagonal: six numbers per medium and sample. The chain to
 what a user differentiates (``albedo``, ``sigma_t``: ``sigma_s = albedo sigma_t scale``) is Mitsuba's own, through
 the coefficients the medium returns with gradients on (:func:`render_backward`, :func:`render_forward`).
