@@ -49,8 +49,8 @@ def _sums(color):
 
 @pytest.mark.parametrize("boundary, light, sigma_t", [
     ("null", "constant", (2.0, 6.0, 9.0)),
-    ("null", "constant", (4.0, 4.0, 4.0)),
-    pytest.param("dielectric", "point", (2.0, 6.0, 9.0), id="dielectric-point-W4"),
+    pytest.param("null", "constant", (4.0, 4.0, 4.0), marks=pytest.mark.slow),
+    pytest.param("dielectric", "point", (2.0, 6.0, 9.0), id="dielectric-point-W4", marks=pytest.mark.slow),
     pytest.param("roughdielectric", "constant", (3.0, 5.0, 8.0), marks=pytest.mark.slow),
 ])
 def test_the_walks_jacobian_is_the_derivative_of_its_own_estimate(mi, boundary, light, sigma_t):
@@ -183,6 +183,7 @@ def test_a_parameter_other_than_the_medium_and_the_roughness_is_refused_by_name(
     assert key in str(error) and "nothing else" in str(error)
 
 
+@pytest.mark.slow
 def test_derivatives_follow_convsss_render(mi):
     """convsss.render (the one-line errors' wrapper of mi.render) passes the derivatives through."""
     import drjit as dr
@@ -235,6 +236,7 @@ def _grid_scene(mi, grid, sigma_t_grid=False):
         "light": {"type": "constant"}})
 
 
+@pytest.mark.slow
 def test_an_albedo_grid_s_gradient_is_the_derivative_of_the_walk(mi):
     """A heterogeneous medium's albedo (a 4^3 RGB gridvolume, sigma_t constant): dr.backward of the image's sum (the
     walks replayed, Eq. G3) along a random direction of the grid equals central differences of the same walks on the
