@@ -52,7 +52,11 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
 * Russian roulette on the path's weight from ``rr_depth`` (not at albedo ~1 inside a medium, where it would only add
   fireflies: there the roulette's survival odds are the weight itself, capped at 1), ``max_depth`` bounces (on
   opaque surfaces, and one per walk through a medium at its first scattering, as the transport's exitance is one:
-  1 shows the emitters alone, 2 adds the light under the surface) and at most :data:`MAX_WALK` events in media.
+  1 shows the emitters alone, 2 adds the light under the surface) and at most :data:`MAX_WALK` events in media; a
+  survivor's ``1/q`` weighs both of Eq. W2's techniques for the light it finds next;
+* **derivatives** with respect to the media's coefficients (:mod:`.derivatives`): each path carries its events'
+  scores beside its ratios and each sample a Jacobian (Eq. G1, G2), or a replayed walk sends each event's score times
+  the radiance still to come into Mitsuba's AD (Eq. G3).
 """
 
 from dataclasses import dataclass
