@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import convsss
+from convsss.bench.gradients import CASES, difference, gradient, scene_dict
 from convsss.errors import ConvsssError
 from convsss.pipeline.derivatives import NOT_WALKED, camera_samples
 
@@ -15,25 +16,10 @@ RES = 12
 
 def _scene(mi, albedo=(0.8, 0.8, 0.8), sigma_t=(2.0, 6.0, 9.0), boundary="null", light="constant", res=RES,
            **integrator):
-    """A unit sphere of a homogeneous medium (``sigma_t`` per unit, as its rgb value times a scale) in front of a
-    camera, under a constant environment or a point light."""
-    T = mi.ScalarTransform4f
-    bsdf = {"type": "null"} if boundary == "null" else {"type": boundary, "int_ior": 1.4}
-    if boundary == "roughdielectric":
-        bsdf["alpha"] = 0.2
-    scale = max(sigma_t)
-    lights = {"light": {"type": "constant"}} if light == "constant" else {
-        "light": {"type": "point", "position": [2.0, 3.0, 2.0], "intensity": {"type": "rgb", "value": [10.0] * 3}}}
-    return mi.load_dict({
-        "type": "scene", "integrator": {"type": "convsss", "walk_depth": "inf", **integrator},
-        "sensor": {"type": "perspective", "fov": 30.0,
-                   "to_world": T().look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
-                   "film": {"type": "hdrfilm", "width": res, "height": res, "rfilter": {"type": "box"}},
-                   "sampler": {"type": "independent", "sample_count": 4}},
-        "sphere": {"type": "sphere", "radius": 1.0, "bsdf": bsdf,
-                   "interior": {"type": "homogeneous", "albedo": {"type": "rgb", "value": list(albedo)},
-                                "sigma_t": {"type": "rgb", "value": [s / scale for s in sigma_t]}, "scale": scale}},
-        **lights})
+    """Issue 63's unit sphere (:func:`convsss.bench.gradients.scene_dict`: a homogeneous medium, ``sigma_t`` per
+    unit as its rgb value times a scale) in front of a camera, under a constant environment or a point light."""
+    return mi.load_dict(scene_dict(albedo, sigma_t, boundary, {"type": "convsss", "walk_depth": "inf", **integrator},
+                                   res, light))
 
 
 def _walk(mi, scene):
@@ -86,31 +72,14 @@ def test_the_walks_jacobian_is_the_derivative_of_its_own_estimate(mi, boundary, 
         np.testing.assert_allclose(derivative, differences, rtol=2e-3)
 
 
-def _gradients(mi, scene, keys, seed, spp):
-    """dr.backward of the image's mean per channel through mi.render: d(mean of channel c) / d(parameter c)."""
-    import drjit as dr
-
-    params = mi.traverse(scene)
-    out = []
-    for key in keys:
-        dr.enable_grad(params[key])
-        params.update()
-        image = mi.render(scene, params, seed=seed, seed_grad=seed + 1000, spp=spp)
-        dr.backward(dr.mean(dr.ravel(image[..., :3])))
-        out.append(3 * np.array(dr.grad(params[key]), dtype=np.float64).ravel())
-        dr.disable_grad(params[key])
-        params.update()
-    return out
-
-
 def test_backward_and_forward_agree(mi):
     """The two modes on the same samples: the forward image's mean along a tangent equals the backward gradient's
     component along it (float sums apart)."""
     import drjit as dr
 
-    scene = _scene(mi)
+    scene = _scene(mi)  # CASES[1]'s sphere
     key = "sphere.interior_medium.albedo.value.value"
-    backward = _gradients(mi, scene, [key], seed=3, spp=8)[0]
+    backward = gradient(mi, CASES[1], 3, 8, RES)[0]
     params = mi.traverse(scene)
     dr.enable_grad(params[key])
     params.update()
@@ -126,30 +95,14 @@ def test_gradients_equal_differences_of_volpathmis(mi):
     """Issue 63's sphere (null boundary, constant light, chromatic sigma_t, albedo 0.8): d/d albedo and d/d sigma_t
     (its rgb value) of the image's mean by dr.backward equal central differences of volpathmis (common seeds) within
     both estimates' noise (4 standard errors from the seeds' spread) and 5 %."""
-    from convsss.pipeline.reference import reference_integrator
-
-    keys = ["sphere.interior_medium.albedo.value.value", "sphere.interior_medium.sigma_t.value.value"]
-    scene = _scene(mi)
-    ours = np.array([_gradients(mi, scene, keys, seed, spp=256) for seed in range(6)])
-    reference, h = reference_integrator(), 0.01
-    differences = []
-    for seed in range(6):
-        pair = []
-        for key, base in zip(keys, ((0.8,) * 3, (2.0, 6.0, 9.0))):
-            sides = []
-            for sign in (1, -1):
-                albedo = tuple(a + sign * h for a in base) if "albedo" in key else (0.8,) * 3
-                sigma_t = tuple(s + sign * h * 9.0 for s in base) if "sigma_t" in key else (2.0, 6.0, 9.0)
-                image = mi.render(_scene(mi, albedo, sigma_t), integrator=reference, seed=seed, spp=512)
-                sides.append(np.array(image, dtype=np.float64)[..., :3].mean(axis=(0, 1)))
-            pair.append((sides[0] - sides[1]) / (2 * h))
-        differences.append(pair)
-    differences = np.array(differences)
+    cases = [CASES[1], CASES[3]]  # d/d albedo and d/d sigma_t, both of sigma_t 2/6/9
+    ours = np.array([[gradient(mi, case, seed, 256)[0] for case in cases] for seed in range(6)])
+    differences = np.array([[difference(mi, case, seed, 512) for case in cases] for seed in range(6)])
     for k in range(2):
         a, b = ours[:, k].mean(0), differences[:, k].mean(0)
         noise = np.hypot(ours[:, k].std(0), differences[:, k].std(0)) / np.sqrt(6)
-        assert np.all(np.abs(a - b) < np.maximum(4 * noise, 0.0)), (keys[k], a, b, noise)
-        assert np.all(np.abs(a - b) < 0.05 * np.abs(b) + 4 * noise), (keys[k], a, b, noise)
+        assert np.all(np.abs(a - b) < np.maximum(4 * noise, 0.0)), (cases[k][0], a, b, noise)
+        assert np.all(np.abs(a - b) < 0.05 * np.abs(b) + 4 * noise), (cases[k][0], a, b, noise)
 
 
 def _refusal(mi, scene, key):

@@ -37,8 +37,9 @@ DENSE = CASES[-1]
 COST_RES = 128
 
 
-def scene_dict(albedo, sigma_t, boundary, integrator, res=16):
-    """Issue 63's sphere: radius 1 (mm), ``sigma_t`` as its rgb value times a scale (the largest channel)."""
+def scene_dict(albedo, sigma_t, boundary, integrator, res=16, light="constant"):
+    """Issue 63's sphere: radius 1 (mm), ``sigma_t`` as its rgb value times a scale (the largest channel), under a
+    constant environment (``light`` "constant") or a point light ("point"); a rough boundary's alpha 0.2."""
     import mitsuba as mi
 
     T = mi.ScalarTransform4f
@@ -55,7 +56,8 @@ def scene_dict(albedo, sigma_t, boundary, integrator, res=16):
                        "interior": {"type": "homogeneous", "albedo": {"type": "rgb", "value": list(albedo)},
                                     "sigma_t": {"type": "rgb", "value": [s / scale for s in sigma_t]},
                                     "scale": scale}},
-            "light": {"type": "constant"}}
+            "light": {"type": "constant"} if light == "constant" else {
+                "type": "point", "position": [2.0, 3.0, 2.0], "intensity": {"type": "rgb", "value": [10.0] * 3}}}
 
 
 CONVSSS = {"type": "convsss", "walk_depth": "inf"}

@@ -228,27 +228,39 @@ def camera_samples(scene, sensor, seed, spp):
 
 
 def _splat(film, channels, position, value):
-    """The film's image of per-sample ``value`` (Color3f) splatted at ``position`` (its AOVs 0)."""
+    """The film's image of per-sample ``value`` (Color3f) splatted at ``position`` (its AOVs 0); the film is left
+    empty for the next."""
     block = film.create_block()
     n = dr.width(value)
     alpha = [dr.ones(mi.Float, n)] if mi.has_flag(film.flags(), mi.FilmFlags.Alpha) else []
     zeros = [dr.zeros(mi.Float, n)] * (channels - 4 - len(alpha))
     block.put(mi.Point2f(position), [value.x, value.y, value.z, *alpha, dr.ones(mi.Float, n), *zeros])
     film.put_block(block)
-    return film.develop()
+    image = film.develop()
+    film.clear()
+    return image
 
 
 # --- Mitsuba's render_backward / render_forward --------------------------------------------------------------------
+def _walk_to_the_end(session):
+    """The prepared walk of ``session`` (a :class:`~.session.RenderSession`), refused in one line where it does not
+    walk to the end."""
+    walk = session.tracer.walk if session.tracer is not None else None
+    if walk is None or walk.field is not None or session.mode.walk_depth != math.inf:
+        raise ConvsssError(NOT_WALKED)
+    return walk
+
+
 @contextmanager
 def _walked(integrator, scene, sensor, seed, params):
-    """``(walk, media)``: ``integrator`` prepared for ``scene`` seen by ``sensor`` (refused where it does not walk
-    to the end), its walk differentiating the media ``params`` tracks gradients of, while in the block."""
+    """``(walk, media, replay)``: ``integrator`` prepared for ``scene`` seen by ``sensor`` (refused where it does not
+    walk to the end), its walk differentiating the media ``params`` tracks gradients of (:func:`differentiated_media`),
+    while in the block."""
     session = integrator.session
     session.reuse(scene, sensor, seed)
-    walk = session.tracer.walk if session.tracer is not None else None
+    walk = None
     try:
-        if walk is None or walk.field is not None or session.mode.walk_depth != math.inf:
-            raise ConvsssError(NOT_WALKED)
+        walk = _walk_to_the_end(session)
         media, replay = differentiated_media(walk.objects, params)
         walk.differentiate(media)
         yield walk, media, replay
@@ -295,9 +307,7 @@ def _adjoint(integrator, film, position, weight, grad_in):
         dr.set_grad(image, grad_in)
         dr.enqueue(dr.ADMode.Backward, image)
         dr.traverse(dr.ADMode.Backward)
-        adjoint = dr.grad(adjoint)
-    film.clear()
-    return adjoint
+        return dr.grad(adjoint)
 
 
 def render_backward(integrator, scene, params, grad_in, sensor, seed, spp):
@@ -306,7 +316,7 @@ def render_backward(integrator, scene, params, grad_in, sensor, seed, spp):
     the homogeneous media's coefficients to their parameters. A heterogeneous medium's albedo varies from one
     scattering vertex to the next: its walks are replayed (path replay backpropagation, Vicini, Speierer and Jakob
     2021), each vertex sending its score times the adjoint radiance still to come to the albedo there (Eq. G3,
-    :meth:`~.walk.RandomWalk.replay_scattering`)."""
+    :func:`replay_scattering`, :func:`replay_bsdf`)."""
     with _walked(integrator, scene, sensor, seed, params) as (walk, media, replay):
         totals = [dr.zeros(mi.Color3f, 1) for _ in range(2 * len(media))]
         walk.replayed = replay
@@ -343,7 +353,6 @@ def render_forward(integrator, scene, params, sensor, seed, spp):
             for j, t in zip(jacobian, tangents):
                 tangent += j * t
             image = image + _splat(film, _channels(integrator, film), position, tangent * weight) * share
-            film.clear()
             dr.eval(image)
     return image
 
@@ -353,9 +362,7 @@ def derivative_images(integrator, medium, spp, seed):
     its derivatives with respect to ``medium``'s ``sigma_t`` and ``sigma_s`` (per scene unit, or the coefficients the
     walk weighs it by: :meth:`~.walk.RandomWalk.weigh`), per channel: three (H, W, 3) float64 arrays from the same
     samples (Eq. G2; :mod:`convsss.fitting`'s Jacobian)."""
-    state, walk = integrator.prepared, integrator.session.tracer.walk
-    if walk is None or walk.field is not None or integrator.session.mode.walk_depth != math.inf:
-        raise ConvsssError(NOT_WALKED)
+    state, walk = integrator.prepared, _walk_to_the_end(integrator.session)
     images = [0.0, 0.0, 0.0]
     walk.differentiate([medium])
     try:
@@ -363,7 +370,6 @@ def derivative_images(integrator, medium, spp, seed):
                                                                            seed, spp, walk):
             for k, value in enumerate((radiance, *jacobian)):
                 images[k] = images[k] + _splat(film, _channels(integrator, film), position, value * weight) * share
-                film.clear()
     finally:
         walk.differentiate([])
     return tuple(np.array(image, dtype=np.float64)[..., :3] for image in images)
