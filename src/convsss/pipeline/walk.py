@@ -65,6 +65,7 @@ import drjit as dr
 
 from ..backend import import_mitsuba
 from .derivatives import accumulate, add_length, add_scattering, replay_bsdf, replay_scattering, zero_scores
+from .manifold import refract_toward
 from .shadow import classify
 from .spectral_mis import ended, mis, ones, update, where
 from .walk_shadows import ShadowRays, shadow_odds
@@ -105,11 +106,14 @@ class _Path:
     specular_chain: object
     after_scatter: object  # the last event was a scattering in a medium
     straight_out: object  # and then the path refracted out through a smooth boundary
+    scattered: object  # the direction the last scattering sent it (Eq. W5's weight where it hits a light)
     valid: object
     depth: object  # bounces: on opaque surfaces, and one per walk through a medium (its first scattering)
     walking: object  # scattered in the medium it is in (since it entered it)
     events: object  # scattering events in media, reflections and refractions at their boundaries
     scatterings: object
+    refracted: object  # light samples Eq. W5 solved for, and those left to Eq. W4 (its solve failed)
+    unsolved: object
     ended: object
     active: object
     scores: tuple  # per differentiated medium, d log f / d sigma_t and d sigma_s so far (Eq. G1)
@@ -128,10 +132,12 @@ class _Path:
                      ratios=ones(n), ratios_nee=ones(n), eta=dr.full(mi.Float, 1.0, n),
                      last_null=dr.full(mi.Bool, False, n), needs_intersection=dr.full(mi.Bool, True, n),
                      specular_chain=dr.full(mi.Bool, True, n), after_scatter=dr.full(mi.Bool, False, n),
-                     straight_out=dr.full(mi.Bool, False, n), valid=dr.full(mi.Bool, False, n),
-                     depth=dr.zeros(mi.UInt32, n), walking=dr.full(mi.Bool, False, n),
-                     events=dr.zeros(mi.UInt32, n), scatterings=dr.zeros(mi.UInt32, n),
-                     ended=dr.full(mi.Bool, False, n), active=dr.full(mi.Bool, True, n),
+                     straight_out=dr.full(mi.Bool, False, n), scattered=dr.zeros(mi.Vector3f, n),
+                     valid=dr.full(mi.Bool, False, n), depth=dr.zeros(mi.UInt32, n),
+                     walking=dr.full(mi.Bool, False, n), events=dr.zeros(mi.UInt32, n),
+                     scatterings=dr.zeros(mi.UInt32, n), refracted=dr.zeros(mi.UInt32, n),
+                     unsolved=dr.zeros(mi.UInt32, n), ended=dr.full(mi.Bool, False, n),
+                     active=dr.full(mi.Bool, True, n),
                      scores=zero_scores(differentiated, n), jacobian=zero_scores(differentiated, n))
 
 
@@ -183,15 +189,16 @@ class RandomWalk(ShadowRays):
         self.differentiated = [mi.MediumPtr(m) for m in media]
 
     def reset(self):  # the counts (:attr:`counts`) start again
-        self.counts = {"paths": 0, "events": 0, "ended": 0, "capped": 0}
+        self.counts = {"paths": 0, "events": 0, "ended": 0, "capped": 0, "refracted": 0, "unsolved": 0}
 
     @property
     def stats(self):
         """The counts and what they say: mean scattering events per path, the share of paths ended in the field and
-        cut by the cap."""
+        cut by the cap, and of the light samples through a smooth boundary left to Eq. W4 (Eq. W5's solve failed)."""
         c, paths = self.counts, max(self.counts["paths"], 1)
         return {**c, "events_per_path": c["events"] / paths, "ended_share": c["ended"] / paths,
-                "capped_share": c["capped"] / paths}
+                "capped_share": c["capped"] / paths,
+                "unsolved_share": c["unsolved"] / max(c["refracted"] + c["unsolved"], 1)}
 
     def trace(self, sampler, ray, medium=None):
         """Radiance (mi.Color3f) and first-hit mask (mi.Bool) of rays ``ray`` (camera rays, or rays from points in
@@ -216,9 +223,12 @@ class RandomWalk(ShadowRays):
             path, scatter = self._field_ends(path, mei, scatter)
             path = self._scatter(path, mei, scatter, sampler)
             path = self._surface(path, in_medium, escaped, sampler)
-        dr.eval(path.result, path.valid, path.scatterings, path.ended, path.events, path.jacobian)
+        dr.eval(path.result, path.valid, path.scatterings, path.refracted, path.unsolved, path.ended, path.events,
+                path.jacobian)
         self.counts["paths"] += dr.width(path.active)
         self.counts["events"] += int(dr.sum(mi.UInt64(path.scatterings))[0])
+        self.counts["refracted"] += int(dr.sum(mi.UInt64(path.refracted))[0])
+        self.counts["unsolved"] += int(dr.sum(mi.UInt64(path.unsolved))[0])
         self.counts["ended"] += int(dr.count(path.ended)[0])
         self.counts["capped"] += int(dr.count(path.events >= MAX_WALK)[0])
         return path
@@ -324,6 +334,7 @@ class RandomWalk(ShadowRays):
         wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
                                                    sampler.next_2d(scatter), scatter)
         path.ray[scatter] = mei.spawn_ray(wo)
+        path.scattered[scatter] = wo
         path.needs_intersection |= scatter
         path.ratios = update(path.ratios, phase_pdf, phase_weight * phase_pdf, scatter)
         path.ratios_nee = update(path.ratios_nee, 1.0, phase_weight * phase_pdf, scatter)
@@ -339,18 +350,25 @@ class RandomWalk(ShadowRays):
         si[intersect] = scene.ray_intersect(ray, intersect)
         first = active_surface & (path.depth == 0) & (path.events == 0)
         path.valid[first] = si.is_valid()
-        direct = first | path.specular_chain
         emitter = si.emitter(scene)
         seen = active_surface & (emitter != None)  # noqa: E711
+        # Refracted straight out of the last vertex to a light it sampled by Eq. W5: weighed against that, not direct
+        bent = path.straight_out & ~mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite)
+        direct = first | (path.specular_chain & ~bent)
         to_emitter = mi.DirectionSample3f(scene, si, path.last_scatter)
         if self.lights[0] is None:
             emitter_pdf = scene.pdf_emitter_direction(path.last_scatter, to_emitter, seen & ~direct)
         else:  # each emitter sampled: its own density, no choice
             emitter_pdf = emitter.pdf_direction(path.last_scatter, to_emitter, seen & ~direct)
+        if self.straight_through:  # Eq. W5's density of this light
+            bent &= seen & ~direct
+            to_emitter.pdf = emitter_pdf
+            refraction = refract_toward(scene, self.classify, path.last_scatter.p, to_emitter, bent)
+            # where the solve from that vertex to this point of the light finds this path, and none elsewhere
+            same = refraction.found & (dr.dot(refraction.d, path.scattered) > 1.0 - 1e-5)
+            emitter_pdf[bent] = dr.select(same, refraction.pdf, 0.0)
         path.ratios_nee = update(path.ratios_nee, emitter_pdf, 1.0, seen & ~direct)
         radiance = emitter.eval(si, seen)
-        # The light that Eq. W4 took at the last scattering vertex (an environment's it leaves to this hit).
-        seen &= ~(path.straight_out & ~mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite))
         found = dr.select(direct, mis(path.ratios), mis(path.ratios, path.ratios_nee)) * radiance
         path.result[seen] += found
         path.jacobian = accumulate(path.jacobian, path.scores, found, seen)  # Eq. G2
@@ -380,8 +398,9 @@ class RandomWalk(ShadowRays):
             path.after_scatter &= ~solid
         path.depth[solid & ~boundary] += 1
         path.events[solid & boundary] += 1
-        path.last_scatter[solid] = _interaction(si)
-        path.ratios_nee = where(solid, path.ratios, path.ratios_nee)
+        # The light sampled here, or at the last vertex if it refracts straight out toward it (Eq. W5)
+        path.last_scatter[solid & ~path.straight_out] = _interaction(si)
+        path.ratios_nee = where(solid & ~path.straight_out, path.ratios, path.ratios_nee)
         path.ratios = update(path.ratios, bs.pdf, bsdf_weight * bs.pdf, active_surface)
         path.ratios_nee = update(path.ratios_nee, 1.0, bsdf_weight * bs.pdf, solid)
         entered = si.target_medium(ray.d)
@@ -409,8 +428,10 @@ class RandomWalk(ShadowRays):
         heuristic (Eq. W2) added to its radiance; ``evaluate(direction)`` is that sampling's ``(value, pdf)``: the
         phase function's or the BSDF's (``surface``: ``(bsdf, si)``, for a replayed walk's Eq. G3)."""
         for light in self.lights:
-            end_nee, end_uni, emitted, ds, crossed, scores = self._emitter(origin, path.medium, path.ratios,
-                                                                           path.channel, sampler, active, light)
+            end_nee, end_uni, emitted, ds, crossed, scores, refraction = self._emitter(
+                origin, path.medium, path.ratios, path.channel, sampler, active, light)
+            path.refracted[refraction.found] += 1
+            path.unsolved[refraction.tried & ~refraction.found] += 1
             value, pdf = evaluate(ds.d)
             end_nee = update(end_nee, 1.0, value, active)
             end_uni = update(end_uni, dr.select(ds.delta | crossed, 0.0, pdf), value, active)

@@ -12,6 +12,7 @@ import drjit as dr
 from ..backend import import_mitsuba
 from .derivatives import add_length, zero_scores
 from .irradiance import fresnel_transmittance, refracted_cosine
+from .manifold import Refraction, refract_toward
 from .spectral_mis import mis, update
 
 mi = import_mitsuba()
@@ -42,6 +43,9 @@ class _Shadow:
     with_uni: tuple
     active: object
     scores: tuple  # the differentiated media's d log f / d sigma_t (and d sigma_s: 0) along it (Eq. G1)
+    bent: object  # it leaves the object where Eq. W5 refracts it toward the light (manifold NEE)
+    out: object  # the refracted direction there
+    straight: object  # a surface's shadow ray: straight through a smooth boundary by Eq. W4 (a vertex's: Eq. W5)
 
 
 class ShadowRays:
@@ -53,8 +57,11 @@ class ShadowRays:
         """Next-event estimation from ``origin`` (an interaction in ``medium``): a sample of emitter ``light`` (None:
         one the scene chooses) and its shadow ray through null boundaries and the media between (a ratio-tracking
         transmittance, every channel's density kept); ``(ratios as light sampling drew it, as the path's own sampling
-        would, emitted L, the sample, where it crossed a smooth boundary by Eq. W4, its scores)`` (no path's own
-        sampling reaches the light that way; the scores: Eq. G1 of :mod:`.derivatives`)."""
+        would, emitted L, the sample (its direction at ``origin``), where it crossed a smooth boundary by Eq. W4 or W5,
+        its scores, the :class:`~.manifold.Refraction`)`` (no path's own sampling reaches the light that way; the
+        scores: Eq. G1 of :mod:`.derivatives`). From a scattering vertex, a light the boundary would take straight
+        (:meth:`_shadow_surface`) is reached by the refracted path to it (Eq. W5, :mod:`.manifold`) where that solve
+        converges."""
         if light is None:
             ds, weight = self.scene.sample_emitter_direction(origin, sampler.next_2d(active), False, active)
         else:
@@ -63,19 +70,43 @@ class ShadowRays:
         active = mi.Bool(active & (ds.pdf != 0.0))
         ray = origin.spawn_ray_to(ds.p)
         medium = mi.MediumPtr(medium)
+        n = dr.width(ray.maxt)
+        ds, ray, emitted, refraction = self._refracted(origin, ds, ray, emitted, active)
+        active &= ~refraction.tried | refraction.found  # no refracted path to the light: none of its light
         if isinstance(origin, mi.SurfaceInteraction3f):
             medium[origin.is_medium_transition()] = origin.target_medium(ray.d)
-        n = dr.width(ray.maxt)
         shadow = _Shadow(ray=ray, max_dist=mi.Float(ray.maxt), medium=medium, total=dr.zeros(mi.Float, n),
                          si=dr.zeros(mi.SurfaceInteraction3f, n), needs_intersection=dr.full(mi.Bool, True, n),
-                         crossed=dr.full(mi.Bool, False, n), with_nee=update(ratios, ds.pdf, 1.0, active),
-                         with_uni=ratios, active=active, scores=zero_scores(self.differentiated, n))
+                         crossed=dr.full(mi.Bool, False, n),
+                         with_nee=update(ratios, dr.select(refraction.found, refraction.pdf, ds.pdf), 1.0, active),
+                         with_uni=ratios, active=active, scores=zero_scores(self.differentiated, n),
+                         bent=refraction.found, out=refraction.out,
+                         straight=dr.full(mi.Bool, isinstance(origin, mi.SurfaceInteraction3f), n))
         while shadow.active:
             remaining = shadow.max_dist - shadow.total
             shadow, mei, in_medium, escaped, trial, trial_t = self._shadow_flight(shadow, sampler, channel, ds,
                                                                                   remaining)
             shadow = self._shadow_surface(shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining)
-        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed, shadow.scores
+        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed, shadow.scores, refraction
+
+    def _refracted(self, origin, ds, ray, emitted, active):
+        """``(ds, ray, emitted, refraction)``: from a scattering vertex, the light sample, shadow ray and emission
+        moved onto the refracted path to the light where Eq. W5 found it (:func:`~.manifold.refract_toward`; from a
+        surface as they are, none found)."""
+        if isinstance(origin, mi.SurfaceInteraction3f):
+            return ds, ray, emitted, Refraction.none(dr.width(ray.maxt))
+        refraction = refract_toward(self.scene, self.classify, origin.p, ds, active & self._straight(ds))
+        bent = refraction.found
+        ds.d[bent] = refraction.d
+        ray.d[bent] = refraction.d
+        ray.maxt[bent] = refraction.length
+        emitted[refraction.tried] = refraction.emitted  # none where no refracted path was found
+        return ds, ray, emitted, refraction
+
+    def _straight(self, ds):
+        """The light samples a smooth boundary takes straight (Eq. W4, W5): a delta light's, which no path can reach,
+        and with :attr:`straight_through` every light's but the environment's."""
+        return ds.delta | (self.straight_through & ~mi.has_flag(ds.emitter.flags(), mi.EmitterFlags.Infinite))
 
     def _shadow_flight(self, shadow, sampler, channel, ds, remaining):
         """One step of the shadow ray in a medium (``remaining`` the distance left to the light): ratio tracking to
@@ -108,7 +139,7 @@ class ShadowRays:
         shadow.with_nee = update(shadow.with_nee, dr.select(analytic, odds, flight_pdf), transmittance,
                                  spectral | analytic)
         shadow.with_uni = update(shadow.with_uni, flight_pdf, transmittance, spectral)
-        shadow.total[active_medium & (mei.t > remaining) & mei.is_valid()] = ds.dist
+        shadow.total[active_medium & (mei.t > remaining) & mei.is_valid()] = shadow.max_dist
         mei.t[active_medium & (mei.t > remaining)] = dr.inf
         escaped = active_medium & ~mei.is_valid()
         active_medium &= mei.is_valid()
@@ -138,14 +169,17 @@ class ShadowRays:
         bsdf = si.bsdf(ray)
         passed = bsdf.eval_null_transmission(si, active_surface)
         # A delta light through a translucent object's smooth dielectric boundary, which no path can reach (with
-        # straight_through, every light but the environment): straight out, times the Fresnel transmittance, the
-        # beam's compression and, in a homogeneous medium, the refracted path's length inside (Eq. W4). A rough one
-        # is left to the next-event estimation at the boundary, where its BSDF takes the light.
+        # straight_through, every light but the environment): refracted toward the light where Eq. W5 solved the
+        # path (bent), else straight out, times the Fresnel transmittance, the beam's compression and, in a
+        # homogeneous medium, the refracted path's length inside (Eq. W4). A rough one is left to the next-event
+        # estimation at the boundary, where its BSDF takes the light.
         which, eta = self.classify(si)
         smooth = ~mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-        straight = ds.delta | (self.straight_through & ~mi.has_flag(ds.emitter.flags(), mi.EmitterFlags.Infinite))
         cos = dr.dot(si.n, ray.d)  # > 0: leaving along the outward normal
-        through = inside & (cos > 0.0) & active_surface & straight & (which >= 0) & smooth & (dr.max(passed) == 0.0)
+        through = (inside & (cos > 0.0) & active_surface & self._straight(ds) & (which >= 0) & smooth
+                   & (dr.max(passed) == 0.0))
+        bent = through & shadow.bent
+        through &= shadow.straight
         shadow.crossed |= through
         cos_out = dr.abs(cos)
         compression = cos_out / dr.maximum(refracted_cosine(eta, cos_out), 1e-6)
@@ -155,8 +189,13 @@ class ShadowRays:
                            * dr.exp(-sigma_t * shadow.total * (compression - 1.0)))  # Eq. W4
         shadow.scores = add_length(shadow.scores, self.differentiated, medium, shadow.total * (compression - 1.0),
                                    through)  # Eq. G1 of Eq. W4's refracted path
+        # Eq. W5: eta^2 F_t (its geometry in its density; its path inside stepped already), which the path's own
+        # sampling reaches too, choosing the refraction with odds F_t
+        transmitted = fresnel_transmittance(eta, dr.dot(shadow.out, si.sh_frame.n))
+        passed[bent] = dr.square(eta) * transmitted
+        ray.d[bent] = shadow.out
         shadow.with_nee = update(shadow.with_nee, 1.0, passed, active_surface)
-        shadow.with_uni = update(shadow.with_uni, 1.0, passed, active_surface)
+        shadow.with_uni = update(shadow.with_uni, dr.select(bent, transmitted, 1.0), passed, active_surface)
         ray[active_surface] = si.spawn_ray(ray.d)
         ray.maxt = remaining
         shadow.needs_intersection |= active_surface
