@@ -153,6 +153,8 @@ class RandomWalk(ShadowRays):
         #: Every emitter's light but the environment's reaches a vertex straight through a smooth boundary (Eq. W4)
         #: where ``mode`` says so; at an explicit ``inf`` only a delta light's, so that the walk stays ``volpathmis``.
         self.straight_through = mode.straight
+        #: Some object's boundary is a smooth dielectric: a light sample there is reached by Eq. W5's refracted path.
+        self.refracting = any(obj.boundary == "dielectric" for obj in objects)
         #: Shadow rays take a homogeneous medium's transmittance whole (module doc), but in ``volpathmis``'s estimator
         #: and without path roulette (a fit's walks: its closed loop read 3.3 % off in mfp with it, 1.5 % without).
         self.analytic = not mode.plain and self.rr_depth < MAX_WALK
@@ -360,7 +362,7 @@ class RandomWalk(ShadowRays):
             emitter_pdf = scene.pdf_emitter_direction(path.last_scatter, to_emitter, seen & ~direct)
         else:  # each emitter sampled: its own density, no choice
             emitter_pdf = emitter.pdf_direction(path.last_scatter, to_emitter, seen & ~direct)
-        if self.straight_through:  # Eq. W5's density of this light
+        if self.straight_through and self.refracting:  # Eq. W5's density of this light
             bent &= seen & ~direct
             to_emitter.pdf = emitter_pdf
             refraction = refract_toward(scene, self.classify, path.last_scatter.p, to_emitter, bent)

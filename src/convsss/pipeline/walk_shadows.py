@@ -50,7 +50,7 @@ class _Shadow:
 
 class ShadowRays:
     """Next-event estimation's shadow rays of a :class:`~.walk.RandomWalk` (which holds ``scene``, ``analytic``,
-    ``straight_through``, ``classify`` and ``_evaluated``)."""
+    ``straight_through``, ``refracting``, ``classify`` and ``_evaluated``)."""
 
     @dr.syntax
     def _emitter(self, origin, medium, ratios, channel, sampler, active, light=None):
@@ -93,7 +93,7 @@ class ShadowRays:
         """``(ds, ray, emitted, refraction)``: from a scattering vertex, the light sample, shadow ray and emission
         moved onto the refracted path to the light where Eq. W5 found it (:func:`~.manifold.refract_toward`; from a
         surface as they are, none found)."""
-        if isinstance(origin, mi.SurfaceInteraction3f):
+        if isinstance(origin, mi.SurfaceInteraction3f) or not self.refracting:
             return ds, ray, emitted, Refraction.none(dr.width(ray.maxt))
         refraction = refract_toward(self.scene, self.classify, origin.p, ds, active & self._straight(ds))
         bent = refraction.found
