@@ -151,9 +151,9 @@ def render_parameters():
                   "0 renders with the transport alone (paper Eq. 7); inf follows every walk to its end, which is "
                   "Mitsuba's volpathmis for those objects. auto: the transport where diffusion holds on every "
                   "object (at least 20 transport mean free paths across its mean chord 4V/A, reduced albedo at least "
-                  "0.95), else walks to their end with every light but the environment sampled straight through "
-                  "smooth boundaries (Eq. W4): where diffusion fails walks are short. Where a transport is named "
-                  "and walk_depth is not, 0.", low=0.0, infinite=True, words=("auto",)),
+                  "0.95), else walks to their end with every light but the environment sampled through smooth "
+                  "boundaries along the path that refracts to it (Eq. W5): where diffusion fails walks are short. "
+                  "Where a transport is named and walk_depth is not, 0.", low=0.0, infinite=True, words=("auto",)),
         Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
                   "light; -1 is unbounded with Russian roulette; 0 is not allowed). Light under a translucent "
                   "object's surface is one bounce, whether the transport or a walk renders it (a walk's scattering "
@@ -221,9 +221,9 @@ class RenderMode:
         0: the transport's exitance (paper Eq. 7); inf: walks to their end (volumetric path tracing of the objects'
         media, ``volpathmis``'s estimator); between: walks ended in the diffusion field at that depth (Eq. W3).
     straight : bool
-        Whether walks take every light but the environment straight through smooth boundaries (Eq. W4): walks ended
-        in the field, and ``auto``'s walks; at an explicit inf only a delta light's, so that the walk stays
-        ``volpathmis``.
+        Whether walks sample every light but the environment through smooth boundaries (Eq. W5, the refracted path
+        to it, weighed against the paths that hit it): walks ended in the field, and ``auto``'s walks; at an explicit
+        inf only a delta light, which no path reaches, so that the walk stays ``volpathmis``.
     """
 
     walk_depth: float

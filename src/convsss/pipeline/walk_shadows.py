@@ -1,8 +1,9 @@
 """The random walk's shadow rays (:mod:`.walk`): from a scattering vertex or a surface to a light sample, through null
 boundaries and the media between by ratio tracking (a homogeneous medium's transmittance taken whole where the walk
 is not ``volpathmis``'s estimator, with Russian roulette below :data:`SHADOW_ROULETTE`), every channel's density kept
-for Eq. W1 and W2, and straight out through a smooth dielectric boundary by Eq. W4. :class:`ShadowRays` is the walk's
-part that casts them (:class:`~.walk.RandomWalk` derives from it).
+for Eq. W1 and W2, and out through a smooth dielectric boundary: from a vertex along the refracted path to the light
+(Eq. W5, :mod:`.manifold`), from a surface straight (Eq. W4). :class:`ShadowRays` is the walk's part that casts them
+(:class:`~.walk.RandomWalk` derives from it).
 """
 
 from dataclasses import dataclass
@@ -29,8 +30,9 @@ def shadow_odds(transmittance):
 @dataclass
 class _Shadow:
     """The state of a batch of the walk's shadow rays (a Dr.Jit PyTree): the ray, the distance to the light and the
-    distance covered, the medium it is in, the last surface hit, where it crossed a boundary by Eq. W4, and the
-    density ratios as light sampling drew the light and as the path's own sampling would have."""
+    distance covered, the medium it is in, the last surface hit, where it crossed a boundary by Eq. W4, the
+    density ratios as light sampling drew the light and as the path's own sampling would have, and Eq. W5's
+    refraction."""
 
     ray: object
     max_dist: object
@@ -157,7 +159,7 @@ class ShadowRays:
     def _shadow_surface(self, shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining):
         """The shadow ray at a surface: through a null one, blocked by any other, except a smooth dielectric boundary
         of a translucent object that a delta light (every light but the environment where :attr:`straight_through`)
-        crosses straight out by Eq. W4."""
+        crosses: refracted toward it where Eq. W5 found the path, straight out by Eq. W4 from a surface."""
         ray, si, medium = shadow.ray, shadow.si, shadow.medium
         active_surface = shadow.active & (medium == None)  # noqa: E711
         intersect = active_surface & shadow.needs_intersection
@@ -170,9 +172,9 @@ class ShadowRays:
         passed = bsdf.eval_null_transmission(si, active_surface)
         # A delta light through a translucent object's smooth dielectric boundary, which no path can reach (with
         # straight_through, every light but the environment): refracted toward the light where Eq. W5 solved the
-        # path (bent), else straight out, times the Fresnel transmittance, the beam's compression and, in a
-        # homogeneous medium, the refracted path's length inside (Eq. W4). A rough one is left to the next-event
-        # estimation at the boundary, where its BSDF takes the light.
+        # path from a vertex (bent), or from a surface straight out, times the Fresnel transmittance, the beam's
+        # compression and, in a homogeneous medium, the refracted path's length inside (Eq. W4). A rough one is left
+        # to the next-event estimation at the boundary, where its BSDF takes the light.
         which, eta = self.classify(si)
         smooth = ~mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
         cos = dr.dot(si.n, ray.d)  # > 0: leaving along the outward normal
