@@ -172,10 +172,12 @@ def test_a_heterogeneous_interior_is_refused_in_one_line(mi, sphere_scene, tmp_p
     assert "\n" not in str(info.value)
 
 
-@pytest.mark.parametrize("material, size_mm, lights", [("skin1", 10.0, "back"), ("wholemilk", 4.0, "key+back")])
-def test_the_editor_shows_what_render_renders(mi, material, size_mm, lights):
+@pytest.mark.parametrize("material, size_mm, lights, spp", [("skin1", 10.0, "back", 256),
+                                                            ("wholemilk", 4.0, "key+back", 64)])
+def test_the_editor_shows_what_render_renders(mi, material, size_mm, lights, spp):
     """The editor renders the default render (auto: these objects walk), so its image of a material is
-    ``convsss.render``'s within noise: the means of both over the image, at 64 spp and different seeds, within 3 %.
+    ``convsss.render``'s within noise: the means of both over the image, at 64 spp (256 on the back-lit one, whose
+    render's own noise at 64 spp is 2.3 %: one seed pair read 5 % apart) and different seeds, within 3 %.
     On the back-lit one the transport, which the editor showed before, is off by more than 5 % (checked too; on the
     4 mm milk bunny at this size it is within 5 %)."""
     from convsss.editor import EditSession
@@ -187,9 +189,9 @@ def test_the_editor_shows_what_render_renders(mi, material, size_mm, lights):
             d.pop("key_light")
         return mi.load_dict(d)
 
-    edited = EditSession(scene(), spp=64, seed=5)
+    edited = EditSession(scene(), spp=spp, seed=5)
     assert "random walks" in edited.state()["renders"]
-    rendered = np.asarray(convsss.render(scene(), spp=64, seed=9), dtype=np.float64)[..., :3]
+    rendered = np.asarray(convsss.render(scene(), spp=spp, seed=9), dtype=np.float64)[..., :3]
     mean, truth = edited.image.mean(axis=(0, 1)), rendered.mean(axis=(0, 1))
     assert np.all(np.abs(mean / truth - 1.0) < 0.03), mean / truth
     transport = EditSession(scene(), params=RenderParams(walk_depth=0.0), spp=64, seed=5)

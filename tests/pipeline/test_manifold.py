@@ -96,6 +96,7 @@ def test_the_solved_path_obeys_snells_law_and_its_density_is_the_refracted_beams
     assert np.quantile(np.abs(ratio - 1.0), 0.9) < (1e-2 if shape == "sphere" else 0.1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("light", ["rectangle", "sphere"])
 def test_its_estimate_of_a_vertex_light_equals_brute_force_sampling_through_the_boundary(mi, solve, light):
     """Eq. W5 for area lights: the mean of eta^2 F_t L_e / pdf over light samples at a vertex inside a glass sphere

@@ -59,6 +59,7 @@ class Refraction:
     length: object  # |x - p| + |p - y| (the light's own distance for a directional light)
     pdf: object  # the density of d at x (solid angle; the light's choice included), |det| for a delta light
     emitted: object  # the light's emission toward p, as the sample's emitted (Color3f)
+    straight: object = None  # the straight ray's first hit (a SurfaceInteraction3f; None where none was cast)
 
     @staticmethod
     def none(n):
@@ -201,4 +202,4 @@ def refract_toward(scene, classify, x, ds, active):
     found &= dr.isfinite(pdf) & (pdf > 0.0)
     return Refraction(tried=tried, found=found, d=solve.best, out=out,
                       length=si.t + s * (1.0 - mi.math.ShadowEpsilon), pdf=dr.select(found, pdf, 0.0),
-                      emitted=dr.select(found, emitted, 0.0))
+                      emitted=dr.select(found, emitted, 0.0), straight=first)

@@ -73,12 +73,12 @@ class ShadowRays:
         ray = origin.spawn_ray_to(ds.p)
         medium = mi.MediumPtr(medium)
         n = dr.width(ray.maxt)
-        ds, ray, emitted, refraction = self._refracted(origin, ds, ray, emitted, active)
+        ds, ray, emitted, refraction, si, intersect = self._refracted(origin, ds, ray, emitted, active)
         active &= ~refraction.tried | refraction.found  # no refracted path to the light: none of its light
         if isinstance(origin, mi.SurfaceInteraction3f):
             medium[origin.is_medium_transition()] = origin.target_medium(ray.d)
         shadow = _Shadow(ray=ray, max_dist=mi.Float(ray.maxt), medium=medium, total=dr.zeros(mi.Float, n),
-                         si=dr.zeros(mi.SurfaceInteraction3f, n), needs_intersection=dr.full(mi.Bool, True, n),
+                         si=si, needs_intersection=intersect,
                          crossed=dr.full(mi.Bool, False, n),
                          with_nee=update(ratios, dr.select(refraction.found, refraction.pdf, ds.pdf), 1.0, active),
                          with_uni=ratios, active=active, scores=zero_scores(self.differentiated, n),
@@ -92,18 +92,23 @@ class ShadowRays:
         return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed, shadow.scores, refraction
 
     def _refracted(self, origin, ds, ray, emitted, active):
-        """``(ds, ray, emitted, refraction)``: from a scattering vertex, the light sample, shadow ray and emission
-        moved onto the refracted path to the light where Eq. W5 found it (:func:`~.manifold.refract_toward`; from a
-        surface as they are, none found)."""
+        """``(ds, ray, emitted, refraction, si, intersect)``: from a scattering vertex, the light sample, shadow ray
+        and emission moved onto the refracted path to the light where Eq. W5 found it
+        (:func:`~.manifold.refract_toward`; from a surface as they are, none found), and the shadow ray's first
+        surface where the solve's straight ray found it already (``intersect``: where it is still to find)."""
+        n = dr.width(ray.maxt)
         if isinstance(origin, mi.SurfaceInteraction3f) or not self.refracting:
-            return ds, ray, emitted, Refraction.none(dr.width(ray.maxt))
-        refraction = refract_toward(self.scene, self.classify, origin.p, ds, active & self._straight(ds))
+            return ds, ray, emitted, Refraction.none(n), dr.zeros(mi.SurfaceInteraction3f, n), dr.full(mi.Bool, True, n)
+        cast = active & self._straight(ds)
+        refraction = refract_toward(self.scene, self.classify, origin.p, ds, cast)
         bent = refraction.found
         ds.d[bent] = refraction.d
         ray.d[bent] = refraction.d
         ray.maxt[bent] = refraction.length
         emitted[refraction.tried] = refraction.emitted  # none where no refracted path was found
-        return ds, ray, emitted, refraction
+        si = refraction.straight  # the same ray as the shadow's, unbounded: no surface past the light counts
+        si.t[si.t >= ray.maxt] = dr.inf
+        return ds, ray, emitted, refraction, si, ~cast | bent
 
     def _straight(self, ds):
         """The light samples a smooth boundary takes straight (Eq. W4, W5): a delta light's, which no path can reach,
