@@ -5,16 +5,20 @@ smooth dielectric boundary, along the one path ``x -> p -> y`` that refracts at 
 The walk (:mod:`.walk_shadows`) asks for it where a shadow ray would cross such a boundary straight: a delta light,
 which no path can reach, and with :attr:`~.walk.RandomWalk.straight_through` every light but the environment. The
 straight ray's crossing is the start; :func:`refract_toward` then solves for the direction ``w`` at ``x`` whose ray,
-refracted where it leaves the object (about the shading normal, as the boundary's BSDF refracts), reaches ``y``:
-Newton's method on the residual
+refracted where it leaves the object (about the shading normal, as the boundary's BSDF refracts), leaves along
 
-    r(w) = w_out(w) - u,                  u = (y - p) / |y - p|,  or the light's direction for a directional light,
+    u = (y - p) / |y - p|                 (or the light's direction, for a directional light)
 
-its 2x2 Jacobian carried by ray differentials (Igehy 1999: the hit point moves on the surface's tangent plane, the
-shading normal with it by the mesh's ``dn_du``, ``dn_dv``, the refracted direction by the derivative of Snell's law).
+by Newton's method, its 2x2 Jacobian carried by ray differentials (Igehy 1999: the hit point moves on the surface's
+tangent plane, the shading normal with it by the mesh's ``dn_du``, ``dn_dv``, the refracted direction by the
+derivative of Snell's law).
 Each step casts the ray from ``x`` again, so the iterate is always the first surface that ray meets: a solve in the
-directions at ``x`` rather than on the surface (no projection back onto the mesh needed). At the solution the same
-Jacobian is the generalized geometry term: the refracted beam's cross-section at ``y`` per solid angle at ``x`` is
+directions at ``x`` rather than on the surface (no projection back onto the mesh needed). Newton works on the
+tangential part of ``eta d - u`` (Snell's law, the generalized half vector's form, defined where ``d`` would be
+totally reflected too), halving a step that does not lower it; it starts from the direction that refracts toward
+the light at the straight ray's crossing (the solution for a plane and a distant light) and, where that fails, once
+more from the straight ray. At the solution the Jacobian of ``r(w) = w_out(w) - u`` by the same ray differentials is
+the generalized geometry term: the refracted beam's cross-section at ``y`` per solid angle at ``x`` is
 
     dA_perp / dw = s^2 |det dr/dw|,     (|det dr/dw| alone, a solid angle per solid angle, for a direction)
 
@@ -24,10 +28,14 @@ Jacobian is the generalized geometry term: the refracted beam's cross-section at
 
 (a point light: ``I / (s^2 |det|)``; a directional one ``E / |det|``), ``eta^2`` the radiance's gain into the denser
 medium and ``F_t`` the Fresnel transmittance, times the medium's transmittance along ``x -> p``, which the shadow ray
-steps as any other. For a plane and a distant light this is Eq. W4 exactly (``|det| = eta^2 mu'/mu``). A solve that
-does not converge (a grazing or totally reflected direction, another surface in the way, a fold of the mesh) falls
-back to Eq. W4, counted; a boundary with several solutions for one ``x``, ``y`` gives the one Newton finds (Zeltner,
-Georgiev and Jakob 2020 make that unbiased; not built).
+steps as any other. For a plane and a distant light this is Eq. W4 exactly (``|det| = eta^2 mu'/mu``). The density
+``p_A |det| s^2 / |cos_y|`` is a solid angle's at ``x``, so the walk weighs it against the paths that refract out
+and hit the light by the balance heuristic, the density counted only where the solve from ``x`` to that point of
+the light finds that same path: a solution the solver misses (a fold of the mesh, a second refracted path) stays
+with those hits, unbiased. Where no solution exists (the far side of a caustic) the light sample gives nothing;
+where one is missed, a delta light's light is lost (Zeltner, Georgiev and Jakob 2020 estimate it without bias by
+repeated random starts; not built). Measured on the armadillo mesh, from vertices inside to points around it: 61 %
+of the solves converge, about 72 % have a solution (a brute-force search of directions).
 """
 
 from dataclasses import dataclass
@@ -83,6 +91,7 @@ class _Solve:
     det: object
     converged: object
     steps: object
+    restarted: object
     active: object
 
 
@@ -127,7 +136,8 @@ def refract_toward(scene, classify, x, ds, active):
     solve = _Solve(d=mi.Vector3f(dr.select(dr.dot(u, first.sh_frame.n) > 0.0, start, straight)),
                    best=mi.Vector3f(straight), residual=dr.full(mi.Float, dr.inf, n), step=dr.zeros(mi.Vector3f, n),
                    si=dr.zeros(mi.SurfaceInteraction3f, n), out=dr.zeros(mi.Vector3f, n), det=dr.zeros(mi.Float, n),
-                   converged=dr.full(mi.Bool, False, n), steps=dr.zeros(mi.UInt32, n), active=mi.Bool(tried))
+                   converged=dr.full(mi.Bool, False, n), steps=dr.zeros(mi.UInt32, n),
+                   restarted=dr.full(mi.Bool, False, n), active=mi.Bool(tried))
     while solve.active:
         d = solve.d
         si = scene.ray_intersect(mi.Ray3f(x, d), RAY_FLAGS, False, solve.active)
@@ -183,7 +193,13 @@ def refract_toward(scene, classify, x, ds, active):
         solve.step[halved] = 0.5 * solve.step
         solve.d = mi.Vector3f(dr.normalize(solve.best + solve.step))
         solve.steps += 1
-        solve.active &= (moving | halved) & (solve.steps < MAX_STEPS) & (dr.norm(solve.step) > 1e-6)
+        going = (moving | halved) & (solve.steps < MAX_STEPS) & (dr.norm(solve.step) > 1e-6)
+        # A solve that failed from the refracted start tries once more from the straight ray
+        again = solve.active & ~going & ~solve.converged & ~solve.restarted
+        solve.d[again], solve.best[again], solve.residual[again] = straight, straight, dr.inf
+        solve.step[again], solve.steps[again] = 0.0, 0
+        solve.restarted |= again
+        solve.active &= going | again
 
     found = solve.converged
     si, out = solve.si, solve.out
