@@ -202,7 +202,7 @@ def test_auto_walks_reach_a_light_through_a_curved_smooth_boundary_as_volpathmis
     """walk_depth auto's walks reach an area light through a smooth dielectric by the refracted path to it (Eq. W5,
     manifold NEE) weighed against the paths that refract out and hit it: on a 2 mm skin1 sphere (curved at the scale
     of its mean free path) under an area light behind it, volpathmis's mean within noise. Eq. W4 (the straight ray,
-    corrected as if the boundary were a plane) read 0.84/0.85/0.90 of it."""
+    corrected as if the boundary were a plane; refraction straight) reads 0.84/0.85/0.90 of it."""
     scene = mi.load_dict(sphere_scene(material="skin1", radius=1.0, boundary="dielectric", res=RES,
                                       emitters=_lights(mi, "area", 1.0)))
     inside = translucent_pixels(scene)  # the object's pixels (the light is in view)
@@ -214,6 +214,12 @@ def test_auto_walks_reach_a_light_through_a_curved_smooth_boundary_as_volpathmis
                       dtype=np.float64)[..., :3][inside] for s in (3, 4)]
     (m_ours, e_ours), (m_truth, e_truth) = (_means_and_noise([a[:, None], b[:, None]]) for a, b in (ours, truth))
     assert np.all(np.abs(m_ours - m_truth) <= 0.01 * m_truth + 4 * np.hypot(e_ours, e_truth)), (m_ours / m_truth)
+    # refraction straight: Eq. W4 (no solve), 0.86 of volpathmis over the channels here
+    straight = mi.load_dict({"type": "convsss", "walk_depth": "auto", "max_depth": -1, "refraction": "straight"})
+    m_straight = sum(np.array(mi.render(scene, integrator=straight, spp=SPP, seed=s), dtype=np.float64)[..., :3]
+                     [inside].mean(axis=0) for s in (1, 2)) / 2
+    assert straight.stats["walk"]["refracted"] == 0
+    assert m_straight.sum() < 0.93 * m_truth.sum(), m_straight / m_truth
 
 
 @pytest.mark.slow

@@ -157,8 +157,9 @@ class RandomWalk(ShadowRays):
         #: Every emitter's light but the environment's reaches a vertex straight through a smooth boundary (Eq. W4)
         #: where ``mode`` says so; at an explicit ``inf`` only a delta light's, so that the walk stays ``volpathmis``.
         self.straight_through = mode.straight
-        #: Some object's boundary is a smooth dielectric: a light sample there is reached by Eq. W5's refracted path.
-        self.refracting = any(obj.boundary == "dielectric" for obj in objects)
+        #: A light sample behind a smooth dielectric boundary is reached by Eq. W5's refracted path (the parameter
+        #: ``refraction`` manifold, and some object's boundary is one), else by Eq. W4's straight shadow ray.
+        self.refracting = params.refraction == "manifold" and any(obj.boundary == "dielectric" for obj in objects)
         #: Shadow rays take a homogeneous medium's transmittance whole (module doc), but in ``volpathmis``'s estimator
         #: and without path roulette (a fit's walks: its closed loop read 3.3 % off in mfp with it, 1.5 % without).
         self.analytic = not mode.plain and self.rr_depth < MAX_WALK
@@ -373,6 +374,8 @@ class RandomWalk(ShadowRays):
             # where the solve from that vertex to this point of the light finds this path, and none elsewhere
             same = refraction.found & (dr.dot(refraction.d, path.scattered) > 1.0 - 1e-5)
             emitter_pdf[bent] = dr.select(same, refraction.pdf, 0.0)
+        elif self.straight_through:  # Eq. W4 took this light at the last vertex (refraction straight)
+            seen &= ~bent
         path.ratios_nee = update(path.ratios_nee, emitter_pdf, 1.0, seen & ~direct)
         radiance = emitter.eval(si, seen)
         found = dr.select(direct, mis(path.ratios), mis(path.ratios, path.ratios_nee)) * radiance

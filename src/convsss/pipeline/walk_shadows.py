@@ -47,7 +47,7 @@ class _Shadow:
     scores: tuple  # the differentiated media's d log f / d sigma_t (and d sigma_s: 0) along it (Eq. G1)
     bent: object  # it leaves the object where Eq. W5 refracts it toward the light (manifold NEE)
     out: object  # the refracted direction there
-    straight: object  # a surface's shadow ray: straight through a smooth boundary by Eq. W4 (a vertex's: Eq. W5)
+    straight: object  # straight through a smooth boundary by Eq. W4: a surface's, or with refraction straight
 
 
 class ShadowRays:
@@ -83,7 +83,8 @@ class ShadowRays:
                          with_nee=update(ratios, dr.select(refraction.found, refraction.pdf, ds.pdf), 1.0, active),
                          with_uni=ratios, active=active, scores=zero_scores(self.differentiated, n),
                          bent=refraction.found, out=refraction.out,
-                         straight=dr.full(mi.Bool, isinstance(origin, mi.SurfaceInteraction3f), n))
+                         straight=dr.full(mi.Bool, isinstance(origin, mi.SurfaceInteraction3f)
+                                          or not self.refracting, n))
         while shadow.active:
             remaining = shadow.max_dist - shadow.total
             shadow, mei, in_medium, escaped, trial, trial_t = self._shadow_flight(shadow, sampler, channel, ds,
