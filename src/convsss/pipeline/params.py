@@ -161,7 +161,7 @@ def render_parameters():
                   "it: unbiased for area lights, noisier on detailed meshes, whose many refracted paths the solver "
                   "misses and the hits carry); straight: along the straight shadow ray, corrected as if the boundary "
                   "were a plane (Eq. W4: less noise, biased on curved boundaries, 0.84-0.90 of volpathmis on a 1 mm "
-                  "sphere, 0.95-0.97 on a 30 mm armadillo).", choices=("manifold", "straight")),
+                  "sphere, 0.95-0.99 on a 30 mm armadillo).", choices=("manifold", "straight")),
         Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
                   "light; -1 is unbounded with Russian roulette; 0 is not allowed). Light under a translucent "
                   "object's surface is one bounce, whether the transport or a walk renders it (a walk's scattering "

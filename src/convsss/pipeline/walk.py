@@ -39,7 +39,8 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   make ``volpathmis`` noisy there; a delta light loses what the solver misses (on a sphere, none). Where no
   refracted path to the light sample exists (behind a caustic) it gives no light. The environment (an infinite
   emitter) is left to the paths that hit it, which find it well. A shadow ray from a surface inside the object (an
-  opaque inclusion) crosses the boundary straight, with
+  opaque inclusion), and every one with the parameter ``refraction`` straight (less noise on a detailed mesh,
+  whose many refracted paths the solver misses), crosses the boundary straight, with
 
       F_t(eta, mu) (mu / mu') e^{-sigma_t s (mu / mu' - 1)}                                              (Eq. W4)
 
