@@ -117,7 +117,7 @@ class _Path:
     walking: object  # scattered in the medium it is in (since it entered it)
     events: object  # scattering events in media, reflections and refractions at their boundaries
     scatterings: object
-    refracted: object  # light samples Eq. W5 solved for, and those left to Eq. W4 (its solve failed)
+    refracted: object  # light samples Eq. W5 found the refracted path for, and those it found none for
     unsolved: object
     ended: object
     active: object
@@ -155,7 +155,7 @@ class RandomWalk(ShadowRays):
         self.scene, self.objects = scene, objects
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         self.rr_depth = params.rr_depth
-        #: Every emitter's light but the environment's reaches a vertex straight through a smooth boundary (Eq. W4)
+        #: Every emitter's light but the environment's reaches a vertex through a smooth boundary (Eq. W5, or W4)
         #: where ``mode`` says so; at an explicit ``inf`` only a delta light's, so that the walk stays ``volpathmis``.
         self.straight_through = mode.straight
         #: A light sample behind a smooth dielectric boundary is reached by Eq. W5's refracted path (the parameter
@@ -202,7 +202,7 @@ class RandomWalk(ShadowRays):
     @property
     def stats(self):
         """The counts and what they say: mean scattering events per path, the share of paths ended in the field and
-        cut by the cap, and of the light samples through a smooth boundary left to Eq. W4 (Eq. W5's solve failed)."""
+        cut by the cap, and of the light samples through a smooth boundary Eq. W5 found no refracted path for."""
         c, paths = self.counts, max(self.counts["paths"], 1)
         return {**c, "events_per_path": c["events"] / paths, "ended_share": c["ended"] / paths,
                 "capped_share": c["capped"] / paths,
