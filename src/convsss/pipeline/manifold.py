@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import drjit as dr
 
 from ..backend import import_mitsuba
+from .irradiance import refracted_cosine
 
 mi = import_mitsuba()
 
@@ -80,13 +81,15 @@ class Refraction:
 @dataclass
 class _Solve:
     """Newton's state per lane (a Dr.Jit PyTree): the direction tried, the best one so far, its residual and the
-    step from it, the solution's hit, refracted direction and geometry term, and the steps taken."""
+    step from it, the solution's point and distance from x, refracted direction and geometry term, and the steps
+    taken."""
 
     d: object
     best: object
     residual: object
     step: object
-    si: object
+    p: object
+    t: object
     out: object
     det: object
     converged: object
@@ -108,8 +111,7 @@ def _inside(u, nrm, eta):
     """The direction inside a medium of relative index ``eta`` that refracts into ``u`` (outside, ``u . nrm > 0``)
     through a surface of normal ``nrm`` (Snell's law backwards)."""
     cos_out = dr.dot(u, nrm)
-    cos_in = dr.safe_sqrt(1.0 - (1.0 - dr.square(cos_out)) / dr.square(eta))
-    return dr.normalize((u - cos_out * nrm) / eta + cos_in * nrm)
+    return dr.normalize((u - cos_out * nrm) / eta + refracted_cosine(eta, cos_out) * nrm)
 
 
 @dr.syntax
@@ -135,7 +137,8 @@ def refract_toward(scene, classify, x, ds, active):
     start = _inside(u, first.sh_frame.n, eta)
     solve = _Solve(d=mi.Vector3f(dr.select(dr.dot(u, first.sh_frame.n) > 0.0, start, straight)),
                    best=mi.Vector3f(straight), residual=dr.full(mi.Float, dr.inf, n), step=dr.zeros(mi.Vector3f, n),
-                   si=dr.zeros(mi.SurfaceInteraction3f, n), out=dr.zeros(mi.Vector3f, n), det=dr.zeros(mi.Float, n),
+                   p=dr.zeros(mi.Point3f, n), t=dr.zeros(mi.Float, n), out=dr.zeros(mi.Vector3f, n),
+                   det=dr.zeros(mi.Float, n),
                    converged=dr.full(mi.Bool, False, n), steps=dr.zeros(mi.UInt32, n),
                    restarted=dr.full(mi.Bool, False, n), active=mi.Bool(tried))
     while solve.active:
@@ -183,7 +186,7 @@ def refract_toward(scene, classify, x, ds, active):
         turn = dr.sqrt(dr.square(step1) + dr.square(step2))
         step = dr.select(turn > MAX_TURN, MAX_TURN / turn, 1.0) * (step1 * e1 + step2 * e2)
         solve.best[converged] = d
-        solve.si[converged] = si
+        solve.p[converged], solve.t[converged] = si.p, si.t
         solve.out[converged] = out
         solve.det[converged] = geometry
         solve.converged |= converged
@@ -201,14 +204,12 @@ def refract_toward(scene, classify, x, ds, active):
         solve.restarted |= again
         solve.active &= going | again
 
-    found = solve.converged
-    si, out = solve.si, solve.out
-    to_light = ds.p - si.p
-    s = dr.select(directional, ds.dist, dr.norm(to_light))
+    found, p, out = solve.converged, solve.p, solve.out
+    s = dr.select(directional, ds.dist, dr.norm(ds.p - p))
     # The light's emission toward p: the sample re-evaluated from there (a spot's cone, an area light's side)
     toward = mi.DirectionSample3f(ds.p, ds.n, ds.uv, ds.time, ds.pdf, ds.delta, out, s, ds.emitter)
     it = dr.zeros(mi.Interaction3f, n)
-    it.p, it.time, it.wavelengths = si.p, si.time, si.wavelengths
+    it.p = p
     emitted = ds.emitter.eval_direction(it, toward, found)
     # The density of w at x (solid angle): the sample's p_A(y) (an area light's pdf from x is p_A |x - y|^2 /
     # |cos_y| along the straight ray) times dA_y / dw = s^2 |det| / |cos_y'| (a delta light's: |det| alone, Eq. W5)
@@ -217,5 +218,5 @@ def refract_toward(scene, classify, x, ds, active):
     pdf = ds.pdf * solve.det * dr.select(area, per_area, 1.0)
     found &= dr.isfinite(pdf) & (pdf > 0.0)
     return Refraction(tried=tried, found=found, d=solve.best, out=out,
-                      length=si.t + s * (1.0 - mi.math.ShadowEpsilon), pdf=dr.select(found, pdf, 0.0),
+                      length=solve.t + s * (1.0 - mi.math.ShadowEpsilon), pdf=dr.select(found, pdf, 0.0),
                       emitted=dr.select(found, emitted, 0.0), straight=first)
