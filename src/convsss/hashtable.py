@@ -11,14 +11,15 @@ empty slot. Linear probing from the key's multiplicative hash; a table kept at m
 (2, 1, -1)
 """
 
-import numba
 import numpy as np
+
+from .jit import njit
 
 #: The hash's multiplier (odd, 64-bit): a key's home slot is the low bits of ``key * MULTIPLIER``.
 MULTIPLIER = 0x2545F4914F6CDD1D
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def capacity(count):
     """The table length for ``count`` keys: the smallest power of two, at least 16, that is twice ``count``."""
     size = 16
@@ -27,13 +28,13 @@ def capacity(count):
     return size
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def empty(size):
     """An empty table of ``size`` slots (a power of two): ``(keys, values)``, every value -1."""
     return np.zeros(size, dtype=np.int64), np.full(size, -1, dtype=np.int64)
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def probe(keys, values, key):
     """The slot holding ``key``, or the empty one (value -1) where it would go; the table must have an empty slot."""
     mask = keys.shape[0] - 1
@@ -43,7 +44,7 @@ def probe(keys, values, key):
     return slot
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def grown(keys, values, size):
     """The table moved into one of ``size`` slots (a power of two, larger than its entries)."""
     new_keys, new_values = empty(size)

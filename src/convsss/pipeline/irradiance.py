@@ -30,12 +30,12 @@ Everything is one batch of Dr.Jit arrays per chunk of points (no Python loop ove
 import math
 
 import drjit as dr
-import numba
 import numpy as np
 
 from ..backend import import_mitsuba, to_numpy3
 from ..fresnel import same_eta
 from ..hashtable import capacity, empty, probe
+from ..jit import njit
 from ..profiles.incidence import GAIN_NODES, Orders, exit_normalization, gain_table
 from .mis import power_heuristic
 from .shadow import Shadows
@@ -250,7 +250,7 @@ def stratified_directions(points, owners, spacing, seed, strata=4):
     return np.minimum(u, np.nextafter(1.0, 0.0)).astype(np.float32)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _voxel_ranks(points, owners, spacing):
     """Per path, a hash of the voxel of edge ``spacing`` its point falls in (collisions merge voxels) and the number
     of earlier paths with the same hash (counted in a :mod:`~convsss.hashtable`)."""

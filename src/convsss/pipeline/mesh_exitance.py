@@ -15,10 +15,10 @@ linear interpolation plus the cubic bubble that makes it exact at the centroid. 
 faces, on shapes that are not meshes and on meshes whose table would not fit in memory, go to the transport.
 """
 
-import numba
 import numpy as np
 
 from ..errors import ConvsssError
+from ..jit import njit, prange
 from ..memory import check_memory
 from .surface import has_vertices, mesh_arrays
 
@@ -124,13 +124,13 @@ class MeshExitance:
         self.queries += len(new) + len(vertices)
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _interpolate(face, vertex, at_vertex, bubble, known_face, faces, points, out):
     """Eq. V2 at each hit ``points[k]`` on face ``faces[k]`` into ``out[k]`` where the face is known; returns which
     hits were (K,) bool. The barycentric coordinates are those of the point projected onto the face's plane,
     clamped to the face (float rounding may put a hit a little outside it)."""
     known = np.zeros(len(faces), dtype=np.bool_)
-    for k in numba.prange(len(faces)):
+    for k in prange(len(faces)):
         f = faces[k]
         if not known_face[f]:
             continue

@@ -23,11 +23,11 @@ disk of radius ``r_1`` just above the surface, ``F_t(eta, 1) sum_{r > r_1} W / N
 through Mitsuba.
 """
 
-import numba
 import numpy as np
 
 from ..errors import ConvsssError
 from ..fresnel import check_eta, diffuse_transmittance, fresnel_reflectance
+from ..jit import njit, prange
 
 #: Fresnel table resolution in cos (the walk looks ``F_r`` up instead of carrying a second Fresnel formula).
 FRESNEL_TABLE = 4097
@@ -36,7 +36,7 @@ BINS_PER_DECADE = 20
 R_FIRST = 1e-3
 
 
-@numba.njit(inline="always", cache=True)
+@njit(inline="always", cache=True)
 def _mix(z):
     """splitmix64's finalizer: a 64-bit hash."""
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
@@ -44,14 +44,14 @@ def _mix(z):
     return z ^ (z >> np.uint64(31))
 
 
-@numba.njit(inline="always", cache=True)
+@njit(inline="always", cache=True)
 def _next(state):
     """splitmix64: returns (new state, uniform in (0, 1))."""
     state = state + np.uint64(0x9E3779B97F4A7C15)
     return state, (np.float64(_mix(state) >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
 
 
-@numba.njit(parallel=True, fastmath=False, cache=True)
+@njit(parallel=True, fastmath=False, cache=True)
 def _walk(photons, chunks, albedo, fresnel, depth_max, edges, seed, incidence):
     """Photons enter at the origin at cosine ``incidence`` to the inward normal. Per chunk: (weight, weight^2,
     single-scattered weight) per radial bin (last bin: past the edges), and the weight lost through the bottom."""
@@ -62,7 +62,7 @@ def _walk(photons, chunks, albedo, fresnel, depth_max, edges, seed, incidence):
     log_first = np.log(edges[1])
     per_log = (n_bins - 2) / (np.log(edges[-1]) - log_first)
     table_n = len(fresnel) - 1
-    for c in numba.prange(chunks):
+    for c in prange(chunks):
         start = c * per_chunk
         stop = min(photons, start + per_chunk)
         for i in range(start, stop):

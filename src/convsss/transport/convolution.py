@@ -20,10 +20,10 @@ Cells are ``cell_size / downsample`` mm wide (``downsample`` 1, 1/2, 1/4: the pa
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from ..errors import ConvsssError
+from ..jit import njit, prange
 from ..memory import check_memory
 from ..parameters import Parameter, check_parameters
 from ..samples import ViewFrame
@@ -39,7 +39,7 @@ MAX_LAYERS = 256
 DEFAULT_RESOLUTION = 512
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _layer_of(z, z0, dz, n_layers):
     """Lower bracketing layer and the depth weight of the upper one (0 with a single layer)."""
     if n_layers == 1:
@@ -49,7 +49,7 @@ def _layer_of(z, z0, dz, n_layers):
     return lo, min(max(u - lo, 0.0), 1.0)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _bucket_by_layer(view, z0, dz, n_layers):
     """Counting sort of the samples by their lower bracketing layer: ``order`` and bucket ``starts`` (n_l + 1)."""
     lower = np.empty(view.shape[0], dtype=np.int64)
@@ -67,7 +67,7 @@ def _bucket_by_layer(view, z0, dz, n_layers):
     return order, starts
 
 
-@numba.njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True)
 def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
     """Add each sample's flux (N, C) to 4 cells x 2 layers of ``grid`` (n_l, C, Py, Px); return each layer's total.
 
@@ -77,7 +77,7 @@ def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
     channels, height, width = grid.shape[1], grid.shape[2], grid.shape[3]
     order, starts = _bucket_by_layer(view, z0, dz, n_layers)
     deposited = np.zeros(n_layers)
-    for layer in numba.prange(n_layers):
+    for layer in prange(n_layers):
         for upper in range(2 if n_layers > 1 else 1):
             lower = layer - upper  # samples whose lower layer is `lower` reach `layer` as their upper one
             if lower < 0 or lower >= max(n_layers - 1, 1):
@@ -104,11 +104,11 @@ def _splat(view, flux, x0, y0, h, z0, dz, n_layers, half, grid):
     return deposited
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, fastmath=True, cache=True)
 def _mix(phi_hat, kernel_hat, out_layers, source_layers, keep, out):
     """``out[o] = sum_s K^[|source_layers[s] - out_layers[o]|] * phi_hat[s]`` over the pairs kept per channel."""
     n_freq_y, n_freq_x = out.shape[2], out.shape[3]
-    for ky in numba.prange(n_freq_y):
+    for ky in prange(n_freq_y):
         for o in range(out_layers.shape[0]):
             for c in range(3):
                 row = out[o, c, ky]
@@ -122,11 +122,11 @@ def _mix(phi_hat, kernel_hat, out_layers, source_layers, keep, out):
                         row[kx] += k_row[kx] * p_row[kx]
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, fastmath=True, cache=True)
 def _lookup(view, x0, y0, h, z0, dz, n_layers, exitance, out):
     """Bilinear in x, y within the two bracketing layers of ``exitance`` (n_l, C, H, W), linear in depth (Eq. 7)."""
     channels, height, width = exitance.shape[1], exitance.shape[2], exitance.shape[3]
-    for k in numba.prange(view.shape[0]):
+    for k in prange(view.shape[0]):
         gx = min(max((view[k, 0] - x0) / h, 0.0), width - 1.0)
         gy = min(max((view[k, 1] - y0) / h, 0.0), height - 1.0)
         i = min(int(gx), width - 2)
@@ -145,7 +145,7 @@ def _lookup(view, x0, y0, h, z0, dz, n_layers, exitance, out):
             out[k, c] = acc
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _needed_layers(view, z0, dz, n_layers):
     """Which layers bracket at least one of the points."""
     need = np.zeros(n_layers, dtype=np.bool_)

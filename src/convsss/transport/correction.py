@@ -36,9 +36,9 @@ thin back-lit part, where ``E_q`` is small) as the layers compute it, and is an 
 varies within a few mean free paths of the receiver (shadow edges).
 """
 
-import numba
 import numpy as np
 
+from ..jit import njit, prange
 from .kernels import KernelCache
 
 N_COS = 33
@@ -80,7 +80,7 @@ def line_integral_table(profile, reach, size=384, quadrature=384):
     return d, values
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _interp(x, grid, values, c):
     if x >= grid[-1]:
         return 0.0
@@ -90,9 +90,9 @@ def _interp(x, grid, values, c):
     return (1.0 - f) * values[k, c] + f * values[k + 1, c]
 
 
-@numba.njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True)
 def _plane_response(cos_grid, w_grid, dz, half, u, du, d_grid, lam, out):
-    for i in numba.prange(cos_grid.shape[0]):
+    for i in prange(cos_grid.shape[0]):
         c_theta = cos_grid[i]
         s_theta = np.sqrt(max(0.0, 1.0 - c_theta * c_theta))
         for j in range(w_grid.shape[0]):
@@ -185,7 +185,7 @@ def cached_plane_response(profile, key, dz, splat):
     return response
 
 
-@numba.njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True)
 def apply_correction(exitance, cos_theta, w, irradiance, response, total):
     """The plane correction (Eq. P1, P2 of the module docstring) of ``exitance`` in place, ``C`` bilinear on its
     (cos, w) grid.
@@ -210,7 +210,7 @@ def apply_correction(exitance, cos_theta, w, irradiance, response, total):
     None
     """
     n_cos, n_w = response.shape[0], response.shape[1]
-    for k in numba.prange(exitance.shape[0]):
+    for k in prange(exitance.shape[0]):
         x = min(max(cos_theta[k], 0.0), 1.0) * (n_cos - 1)
         y = min(max(w[k], 0.0), 1.0) * (n_w - 1)
         i = min(int(x), n_cos - 2)

@@ -5,17 +5,17 @@ with numba, parallel over query points on all cores. ``R_d`` comes from the prof
 (:class:`.radial.RadialTable`, about 1e-5 relative), so any profile works.
 """
 
-import numba
 import numpy as np
 
+from ..jit import njit, prange
 from .base import Transport, register_transport
 from .radial import RadialTable, sum_samples
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, fastmath=True, cache=True)
 def _direct_sum(points, positions, flux, r_scale, ds, table, r_max):
     out = np.zeros((points.shape[0], 3))
-    for k in numba.prange(points.shape[0]):
+    for k in prange(points.shape[0]):
         m = sum_samples(points[k, 0], points[k, 1], points[k, 2], positions, flux, 0, positions.shape[0],
                         r_scale, ds, table, r_max * r_max)
         out[k, 0], out[k, 1], out[k, 2] = m

@@ -24,9 +24,9 @@ compiled lookup as the exact transport. The walk is compiled with numba, paralle
 with an explicit stack per thread.
 """
 
-import numba
 import numpy as np
 
+from ..jit import njit, prange
 from ..parameters import Parameter
 from .base import Transport, register_transport
 from .octree import Octree
@@ -36,7 +36,7 @@ from .radial import RadialTable, profile_lookup, sum_samples
 _BLOCK = 64
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, fastmath=True, cache=True)
 def _traverse(points, epsilon, r_scale, ds, table, r_max, position, flux, start, end, first_child, child_count,
               node_area, node_flux, center, box_lo, box_hi, max_depth):
     """Exitance (K, 3) at ``points``, and per query the nodes visited, nodes used whole, samples summed exactly."""
@@ -48,7 +48,7 @@ def _traverse(points, epsilon, r_scale, ds, table, r_max, position, flux, start,
     r_max2 = r_max * r_max
     stack_size = 8 * (max_depth + 1)  # a popped node leaves at most 7 siblings per level on the stack
     n_blocks = (n_query + _BLOCK - 1) // _BLOCK
-    for b in numba.prange(n_blocks):
+    for b in prange(n_blocks):
         stack = np.empty(stack_size, np.int64)
         for k in range(b * _BLOCK, min((b + 1) * _BLOCK, n_query)):
             px, py, pz = points[k, 0], points[k, 1], points[k, 2]

@@ -15,9 +15,9 @@ even, so its spectrum is real and is kept as float32. Spectra are cached per (pr
 
 from collections import OrderedDict
 
-import numba
 import numpy as np
 
+from ..jit import njit, prange
 from .radial import profile_lookup
 
 #: The bytes a kernel cache may hold (the demo's spectra take tens of MiB).
@@ -26,7 +26,7 @@ _SUBCELL_REACH = 32.0  # sub-cells per cell at distance h, falling as 1/rho
 _MAX_SUBCELLS = 256
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, fastmath=True, cache=True)
 def kernel_quadrant(h, depth, nx, ny, r_scale, ds, table, r_core):
     """Cell averages of ``R_d(sqrt(x^2 + y^2 + depth^2))`` for cells centred on ``(i h, j h)``, i < nx, j < ny.
 
@@ -50,7 +50,7 @@ def kernel_quadrant(h, depth, nx, ny, r_scale, ds, table, r_core):
         The cell averages per RGB channel (1/mm^2), ``[c, j, i]`` for the cell centred on ``(i h, j h)``.
     """
     out = np.zeros((3, ny, nx))
-    for j in numba.prange(ny):
+    for j in prange(ny):
         for i in range(nx):
             gap_x = max(i - 0.5, 0.0) * h
             gap_y = max(j - 0.5, 0.0) * h

@@ -21,10 +21,10 @@ one reverse sweep.
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from ..errors import ConvsssError
+from ..jit import njit
 from ..morton import MORTON_BITS, interleave
 
 
@@ -49,7 +49,7 @@ def morton_codes(positions):
     return interleave(cells)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _split(codes, leaf_size):
     """Breadth-first octree topology over sorted Morton ``codes``: per node its sample range, children, depth."""
     n = codes.shape[0]
@@ -94,7 +94,7 @@ def _split(codes, leaf_size):
     return start[:count], end[:count], first_child[:count], child_count[:count], depth[:count]
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _aggregate(start, end, first_child, child_count, position, area, flux):
     """Per node: total area, total flux, flux-weighted position and tight box, summed bottom-up (reverse order)."""
     m = start.shape[0]

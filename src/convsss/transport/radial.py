@@ -8,8 +8,9 @@ through :func:`profile_lookup`, linear in ``s = log(1 + r/r_scale)`` (about 1e-5
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
+
+from ..jit import njit
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ class RadialTable:
         return cls(r_scale, ds, values, r_scale * float(np.expm1(ds * (len(values) - 1))))
 
 
-@numba.njit(inline="always", fastmath=True)
+@njit(inline="always", fastmath=True)
 def profile_lookup(r, r_scale, ds, table, c):
     """``R_d(r)`` of channel ``c`` from a radial table (linear in ``s = log(1 + r/r_scale)``); 0 past its end.
 
@@ -70,7 +71,7 @@ def profile_lookup(r, r_scale, ds, table, c):
     return (1.0 - w) * table[k, c] + w * table[k + 1, c]
 
 
-@numba.njit(inline="always", fastmath=True)
+@njit(inline="always", fastmath=True)
 def sum_samples(px, py, pz, positions, flux, first, last, r_scale, ds, table, r_max2):
     """``sum_{i in [first, last)} R_d(|p - x_i|) Phi_i`` per channel for the point ``(px, py, pz)``.
 

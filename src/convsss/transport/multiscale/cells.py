@@ -3,10 +3,10 @@ at voxel corners (:mod:`convsss.transport.multiscale`)."""
 
 import math
 
-import numba
 import numpy as np
 
 from ...hashtable import capacity, empty, grown, probe
+from ...jit import njit, prange
 from ...memory import check_memory
 from .far_field import _corner
 
@@ -31,7 +31,7 @@ def cell_list_bytes(lo, hi, size):
     return 8 * (float(np.prod(dims)) + 1)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _cell_list(view, origin, size, dims):
     """Counting sort of points into cubes of ``size``: ``order`` and ``starts`` (cells + 1), cells in x-major order."""
     n_cells = dims[0] * dims[1] * dims[2]
@@ -53,14 +53,14 @@ def _cell_list(view, origin, size, dims):
     return order, starts
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _home_cube(point, origin, size):
     """The cube of side ``size`` from ``origin`` that ``point`` (3,) falls in: ``(i, j, m)``."""
     return (int(np.floor((point[0] - origin[0]) / size)), int(np.floor((point[1] - origin[1]) / size)),
             int(np.floor((point[2] - origin[2]) / size)))
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _column(i, j, cm, reach, dims, starts):
     """The range of sorted clusters in the cubes ``(i, j, cm - reach .. cm + reach)`` of a :class:`CellList` (one
     run: its cubes are in x-major order)."""
@@ -68,12 +68,12 @@ def _column(i, j, cm, reach, dims, starts):
     return starts[base + min(max(cm - reach, 0), dims[2])], starts[base + max(min(cm + reach + 1, dims[2]), 0)]
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, fastmath=True, cache=True)
 def _band_sum(view, position, flux, starts, origin, size, dims, reach, table, r_c2, out):
     """``out[k] += sum_{|x_k - x_j| < r} R(|x_k - x_j|) Phi_j`` over the clusters (sorted into cubes of side
     ``size >= r / reach``), for a band ``R`` tabulated uniformly in ``r^2`` on ``[0, r^2 = r_c2]``."""
     scale = (table.shape[0] - 1) / r_c2
-    for k in numba.prange(view.shape[0]):
+    for k in prange(view.shape[0]):
         px, py, pz = view[k, 0], view[k, 1], view[k, 2]
         ci, cj, cm = _home_cube(view[k], origin, size)
         m0 = m1 = m2 = 0.0
@@ -97,11 +97,11 @@ def _band_sum(view, position, flux, starts, origin, size, dims, reach, table, r_
         out[k, 2] += m2
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, fastmath=True, cache=True)
 def _local_sum(view, position, flux, area, starts, origin, size, dims, reach, r_02, energy, out):
     """Eq. M3: ``out[k] += E_core`` times the irradiance around ``view[k]`` averaged over the clusters with the
     weights ``(1 - d^2 / r_0^2)^2``, ``sum w_j Phi_j / sum w_j A_j`` (sorted into cubes as for :func:`_band_sum`)."""
-    for k in numba.prange(view.shape[0]):
+    for k in prange(view.shape[0]):
         px, py, pz = view[k, 0], view[k, 1], view[k, 2]
         ci, cj, cm = _home_cube(view[k], origin, size)
         m0 = m1 = m2 = held = 0.0
@@ -126,7 +126,7 @@ def _local_sum(view, position, flux, area, starts, origin, size, dims, reach, r_
             out[k, 2] += energy[2] * m2 / held
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _voxel_set(view, origin, size, dims):
     """The voxels of side ``size`` (keys ``(i dims[1] + j) dims[2] + m``) holding the points ``view`` (N, 3), all
     inside the ``dims`` voxels from ``origin``: a :mod:`~convsss.hashtable` ``(keys, values)``, values 0 where held."""
@@ -141,7 +141,7 @@ def _voxel_set(view, origin, size, dims):
     return keys, values
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _held_voxel(point, origin, size, dims, voxels):
     """The voxel ``(i, j, m)`` of side ``size`` that ``point`` falls in, if it is one of the ``voxels``
     (:func:`_voxel_set`); ``i`` is -1 otherwise."""
@@ -155,14 +155,14 @@ def _held_voxel(point, origin, size, dims, voxels):
     return i, j, m
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _corner_key(i, j, m, c, dims):
     """The key of corner ``c`` (0-7, bits x y z) of voxel ``(i, j, m)``, on the lattice of ``dims + 1`` corners per
     axis."""
     return ((i + (c >> 2)) * (dims[1] + 1) + (j + ((c >> 1) & 1))) * (dims[2] + 1) + (m + (c & 1))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _missing_corners(view, origin, size, dims, voxels, table):
     """How many distinct corners of the held voxels that the points ``view`` (K, 3) fall in are not yet in the corner
     ``table``: the sums :func:`_corner_slots` would add."""
@@ -183,7 +183,7 @@ def _missing_corners(view, origin, size, dims, voxels, table):
     return missing
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _corner_slots(view, origin, size, dims, voxels, table, count, new_keys):
     """Per point of ``view`` (K, 3) in one of the ``voxels`` (:func:`_voxel_set`) of side ``size``, the slots of its
     voxel's 8 corners, on the lattice of ``dims + 1`` corners per axis from ``origin``: found in the corner ``table``
@@ -206,10 +206,10 @@ def _corner_slots(view, origin, size, dims, voxels, table, count, new_keys):
     return slots, count
 
 
-@numba.njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True)
 def _corner_interpolate(view, origin, size, slots, values, out):
     """``out[k] +=`` the trilinear interpolation at ``view[k]`` of the ``values`` at its voxel's corner ``slots``."""
-    for k in numba.prange(view.shape[0]):
+    for k in prange(view.shape[0]):
         if slots[k, 0] < 0:
             continue
         u = (view[k, 0] - origin[0]) / size

@@ -3,10 +3,10 @@ sums of the core and middle bands run over (:mod:`convsss.transport.multiscale`)
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from ...hashtable import empty, grown, probe
+from ...jit import njit
 
 
 def sheet_side(normal):
@@ -17,7 +17,7 @@ def sheet_side(normal):
     return _sheet_side(np.ascontiguousarray(normal, dtype=np.float64))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _sheet_side(normal):
     side = np.empty(normal.shape[0], dtype=np.int64)
     for k in range(normal.shape[0]):
@@ -29,7 +29,7 @@ def _sheet_side(normal):
     return side
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def bounds(points):
     """The lowest and highest coordinates of ``points`` (N, 3), each (3,); zeros for no points."""
     if points.shape[0] == 0:
@@ -42,7 +42,7 @@ def bounds(points):
     return lo, hi
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def cube_cells(points, origin, size):
     """The cube of side ``size`` from ``origin`` holding each point: ``floor((x - origin) / size)``, (N, 3) int64."""
     cells = np.empty(points.shape, dtype=np.int64)
@@ -90,7 +90,7 @@ def group(cells, side):
     return Grouping(index, first, cells[first], None if side is None else side[first])
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _cube_keys(cells, side):
     """One int64 per (cube, side): ``((i dims[1] + j) dims[2] + m) 6 + side``, ``dims`` the cubes spanned."""
     dims = np.ones(3, dtype=np.int64)
@@ -103,7 +103,7 @@ def _cube_keys(cells, side):
     return key
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _first_seen(key):
     """Per key, the number of distinct keys seen before its first occurrence (a :mod:`~convsss.hashtable` grown to
     stay at most half full), and the first position of each distinct key: ``(index (N,), first (G,))``."""
@@ -133,7 +133,7 @@ def merge(grouping, position, area, flux):
     return Clusters(centre, total, summed, grouping.side)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _merge(index, count, position, area, flux):
     """Per group: the centroid weighted by total flux (by area where a group has none), flux and area summed."""
     centre = np.zeros((count, 3))

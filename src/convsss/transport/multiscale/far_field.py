@@ -3,9 +3,9 @@ read back with the same weights (:mod:`convsss.transport.multiscale`)."""
 
 import math
 
-import numba
 import numpy as np
 
+from ...jit import njit, prange
 from ..kernels import KernelCache
 from ..radial import profile_lookup
 
@@ -19,12 +19,12 @@ SPECTRA = KernelCache()
 FAR_CELLS = 1 << 24
 
 
-@numba.njit(parallel=True, fastmath=True, cache=True)
+@njit(parallel=True, fastmath=True, cache=True)
 def _far_octant(h, shape, r_c, a, b, reach, r_scale, ds, table):
     """``R_far`` (Eq. M2) at the mesh offsets ``h (i, j, m)``, ``0 <= i, j, m < shape``; 0 from ``reach`` on."""
     out = np.zeros((3, shape[0], shape[1], shape[2]))
     r_c2 = r_c * r_c
-    for i in numba.prange(shape[0]):
+    for i in prange(shape[0]):
         for j in range(shape[1]):
             for m in range(shape[2]):
                 r2 = h * h * (i * i + j * j + m * m)
@@ -104,21 +104,21 @@ def padded_convolution(grid, kernel_hat, fft_shape):
     return np.ascontiguousarray(scipy.fft.irfft(spectrum, n=fft_shape[2], axis=3, workers=-1)[..., :nz])
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _corner(c, fu, fv, fw):
     """Corner ``c`` (0-7, bits ``di dj dm``) of a cell and its trilinear weight at the fractions ``fu, fv, fw``."""
     di, dj, dm = c >> 2, (c >> 1) & 1, c & 1
     return di, dj, dm, (fu if di else 1.0 - fu) * (fv if dj else 1.0 - fv) * (fw if dm else 1.0 - fw)
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _spline_node(u, n):
     """The mesh node nearest to ``u`` (in cells; kept one node inside a mesh of ``n``) and the offset from it."""
     i = min(max(int(np.floor(u + 0.5)), 1), n - 2)
     return i, u - i
 
 
-@numba.njit(inline="always")
+@njit(inline="always")
 def _spline(d, t):
     """The quadratic B-spline's weight of node ``t - 1`` (``t`` in 0-2) around the nearest node, at offset ``d``."""
     if t == 0:
@@ -128,7 +128,7 @@ def _spline(d, t):
     return 0.5 * (0.5 + d) ** 2
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _deposit(view, flux, origin, h, grid):
     """Quadratic B-spline (triangular-shaped cloud) deposit of ``flux`` (C, 3) at ``view`` (C, 3) on ``grid``
     (3, nx, ny, nz): each point's flux spread over the 3^3 nodes around its nearest."""
@@ -145,12 +145,12 @@ def _deposit(view, flux, origin, h, grid):
                         grid[c, i + a - 1, j + b - 1, m + e - 1] += wt * flux[k, c]
 
 
-@numba.njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True)
 def _interpolate(view, origin, h, field, out):
     """``out[k] +=`` ``field`` (3, nx, ny, nz) read back at ``view[k]`` with the deposit's quadratic B-spline
     weights (a point farther than a node from the mesh's border reads it there)."""
     nx, ny, nz = field.shape[1], field.shape[2], field.shape[3]
-    for k in numba.prange(view.shape[0]):
+    for k in prange(view.shape[0]):
         i, du = _spline_node(min(max((view[k, 0] - origin[0]) / h, 1.0), nx - 2.0), nx)
         j, dv = _spline_node(min(max((view[k, 1] - origin[1]) / h, 1.0), ny - 2.0), ny)
         m, dw = _spline_node(min(max((view[k, 2] - origin[2]) / h, 1.0), nz - 2.0), nz)

@@ -3,8 +3,9 @@ boundary cut into the links (Eq. D2-D4), its multigrid solver, and the moments t
 gather the field from them (:mod:`convsss.transport.volume`)."""
 
 
-import numba
 import numpy as np
+
+from ...jit import njit, prange
 
 #: A point whose offset from its nearest sample makes an angle with the normal of cosine below this lies beyond a
 #: rim (:meth:`Surface.signed_distance`).
@@ -137,7 +138,7 @@ def assemble(sd, z_b, diffusion, sigma_a, h):
     return matrix, index
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def moment_weights(point, origin, h, index, depth, nodes, weights):
     """The 8 nodes around ``point`` and their trilinear weights, written to ``nodes`` and ``weights`` (8,), kept on
     inside nodes (``index >= 0``) and scaled so that ``sum_k w_k d_k`` is the point's own distance inside the
@@ -180,7 +181,7 @@ def moment_weights(point, origin, h, index, depth, nodes, weights):
     return held
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _deposit(points, values, origin, h, index, depth, rhs, held):
     """``rhs[n] += w_n values[k]`` over every point's :func:`moment_weights` (one thread: the points share nodes)."""
     nodes, weights = np.zeros(8, dtype=np.int64), np.zeros(8)
@@ -190,10 +191,10 @@ def _deposit(points, values, origin, h, index, depth, rhs, held):
             rhs[nodes[corner]] += weights[corner] * values[k]
 
 
-@numba.njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True)
 def _gather(points, field, origin, h, index, depth, out, held):
     """``out[k] = sum_n w_n field[n]`` over each point's :func:`moment_weights`."""
-    for k in numba.prange(len(points)):
+    for k in prange(len(points)):
         nodes, weights = np.zeros(8, dtype=np.int64), np.zeros(8)
         held[k] = moment_weights(points[k], origin, h, index, depth, nodes, weights)
         value = 0.0
