@@ -6,7 +6,7 @@ import pytest
 import convsss
 from convsss.errors import ConvsssError
 from convsss.media.dicts import translucent
-from convsss.pipeline.checks import MeshWarning, UnitsWarning
+from convsss.pipeline.checks import TOPOLOGIES, MeshWarning, UnitsWarning, mesh_topology
 from convsss.pipeline.objects import find_translucent_objects
 
 
@@ -70,6 +70,19 @@ def test_open_and_inverted_meshes_warn(mi, tmp_path):
         warnings.simplefilter("error")
         (obj,) = _objects(mi, {"s": translucent(_obj(tmp_path / "closed.obj", CUBE_FACES), skin)})
     assert obj.orientation == 1.0
+
+
+def test_a_mesh_checked_again_is_not_measured_again_until_it_changes(mi, tmp_path):
+    """A render checks its meshes at the load and again at each survey: the second check of the same vertices and
+    faces is the first's (no new entry), and moved vertices are measured anew (the cube scaled by 2: volume 8)."""
+    cube = mi.load_dict(_obj(tmp_path / "cube.obj", CUBE_FACES))
+    assert mesh_topology(cube) == (True, pytest.approx(1.0), 0)
+    kept = len(TOPOLOGIES)
+    assert mesh_topology(cube) == (True, pytest.approx(1.0), 0) and len(TOPOLOGIES) == kept
+    params = mi.traverse(cube)
+    params["vertex_positions"] = params["vertex_positions"] * 2.0
+    params.update()
+    assert mesh_topology(cube) == (True, pytest.approx(8.0), 0)
 
 
 def test_wrong_units_warn(mi):

@@ -4,7 +4,9 @@ overlapping, ``convsss_medium`` boundaries that agree with their presets, a walk
 boundary under a delta light.
 """
 
+import hashlib
 import warnings
+from collections import OrderedDict
 
 import numpy as np
 
@@ -19,6 +21,10 @@ from .traversal import hit_indices, scene_surfaces, shape_index
 SPAN_LIMITS = (1e-3, 5e4)
 #: Analytic shapes (Mitsuba class names) that bound a volume; disks, rectangles and cylinders are open.
 CLOSED_ANALYTIC = ("Sphere",)
+#: :func:`mesh_topology` of the last meshes seen, by a digest of their vertices and faces: a render checks its
+#: meshes at the load and again when it surveys its objects, and a session surveys again for every render.
+TOPOLOGIES = OrderedDict()
+TOPOLOGIES_KEPT = 16
 
 
 class MeshWarning(UserWarning):
@@ -38,6 +44,16 @@ def mesh_topology(shape):
     direction (0 when the faces are wound consistently, each edge traversed once each way).
     """
     positions, faces = mesh_arrays(shape)
+    key = hashlib.blake2b(positions.tobytes() + faces.tobytes(), digest_size=16).digest()
+    if key not in TOPOLOGIES:
+        TOPOLOGIES[key] = _topology(positions, faces)
+        while len(TOPOLOGIES) > TOPOLOGIES_KEPT:
+            TOPOLOGIES.popitem(last=False)
+    TOPOLOGIES.move_to_end(key)
+    return TOPOLOGIES[key]
+
+
+def _topology(positions, faces):
     if len(faces) == 0:
         return False, 0.0, 0
     extent = max(float(np.max(np.ptp(positions, axis=0))), 1e-30)
