@@ -287,6 +287,38 @@ def bench_walk_command(scenes, width, spp, reference_spp, depths, plot_path, out
     click.echo(json.dumps(result, indent=1, default=str) if as_json else walk_table(result))
 
 
+@bench.command("cost")
+@click.option("--scene", "scenes", multiple=True,
+              type=click.Choice(["skin40-back", "armadillo30-area", "milk4", "ketchup20", "marble40-area",
+                                 "dragon40-sun", "lucy40-side", "potato40-env"]),
+              help="A scene of bench walk (repeat for several) [default: milk4, skin40-back, ketchup20, "
+                   "armadillo30-area].")
+@click.option("--width", type=click.IntRange(16, 4096), default=192, show_default=True,
+              help="Image width and height (square).")
+@click.option("--spp", type=click.IntRange(1), default=64, show_default=True, help="Samples per pixel.")
+@click.option("--runs", type=click.IntRange(1), default=3, show_default=True,
+              help="Timed runs of each render and command (after one untimed run each); their median is shown.")
+@click.option("--commands/--no-commands", default=True, show_default=True,
+              help="Also time the whole commands in fresh processes (convsss render at inf and auto, mitsuba).")
+@click.option("-o", "--output", "out_file", type=click.Path(dir_okay=False),
+              help="Also write the result as JSON to this file.")
+@click.option("--json", "as_json", is_flag=True, help="Print {meta, rows} as JSON instead of the table.")
+@PROGRESS
+def bench_cost_command(scenes, width, spp, runs, commands, out_file, as_json, progress):
+    """What a sample and a command cost where the render walks: convsss at walk_depth inf (volpathmis's
+    estimator) against volpathmis, warm in one process, with convsss's kernels and the time outside them; and the
+    whole commands in fresh processes beside Mitsuba's own on the same scene file. Run it alone on the machine."""
+    from ..bench.cost import bench_cost, cost_table
+
+    chosen = scenes or ("milk4", "skin40-back", "ketchup20", "armadillo30-area")
+    result = bench_cost(chosen, width, spp, runs, commands, progress)
+    if out_file:
+        from ..files import atomic_write
+
+        atomic_write(out_file, lambda tmp: Path(tmp).write_text(json.dumps(result, indent=1)))
+    click.echo(json.dumps(result, indent=1) if as_json else cost_table(result))
+
+
 @bench.command("battery")
 @click.option("--json", "as_json", is_flag=True, help="Print the rows as JSON instead of the table.")
 @PROGRESS
