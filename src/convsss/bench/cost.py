@@ -130,15 +130,19 @@ def bench_cost(scenes, width=192, spp=64, runs=3, commands=True, progress=True):
                 row["command_s"] = per_command(path, folder, runs, bar)
             rows.append(row)
     bar.close()
-    meta = {"width": width, "spp": spp, "runs": runs, "cpus": os.cpu_count(), "load_average_start": load}
+    meta = {"width": width, "spp": spp, "runs": runs, "cpus": os.cpu_count(), "load_average_start": load,
+            # set, Python compiles convsss's modules in every fresh process (about 0.08 s of each command)
+            "PYTHONDONTWRITEBYTECODE": os.environ.get("PYTHONDONTWRITEBYTECODE", "")}
     return {"meta": meta, "rows": rows}
 
 
 def cost_table(result):
     """The rows as a text table."""
     meta = result["meta"]
+    cached = "without" if meta["PYTHONDONTWRITEBYTECODE"] else "with"
     lines = [f"{meta['width']}², {meta['spp']} spp, medians of {meta['runs']} runs; per sample warm in one process "
-             "(convsss at walk_depth inf, volpathmis without roulette); commands in fresh processes",
+             f"(convsss at walk_depth inf, volpathmis without roulette); commands in fresh processes, {cached} "
+             "bytecode caches",
              f"{'scene':18s} {'convsss s':>9s} {'volpath s':>9s} {'ratio':>6s} {'kernels s':>9s} {'(n)':>4s} "
              f"{'outside s':>9s} | {'cmd inf s':>9s} {'cmd auto s':>10s} {'mitsuba s':>9s}  longest kernels s"]
     for row in result["rows"]:
