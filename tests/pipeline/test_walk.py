@@ -313,3 +313,36 @@ def test_an_optically_huge_object_keeps_its_light_dense_or_far_from_the_origin(m
     assert thick > 0.005
     for value in (_dense_sphere(mi, 5000.0), _dense_sphere(mi, 50000.0), _dense_sphere(mi, 500.0, (300.0, 0, 0))):
         assert value == pytest.approx(thick, rel=0.03)
+
+
+def test_a_path_in_an_objects_medium_outside_every_box_of_that_medium_ends_as_leaked(mi):
+    """A path that left its object unseen (a vertex a rounding error past the boundary) went on scattering through
+    empty space as if inside it, to MAX_WALK (100 000) events: 10 of 2.4 million paths on a 4 mm milk bunny, a third
+    of its render's time without roulette. Rays started 10 units from a unit sphere in its medium, pointing away, end
+    at their first vertex, counted as leaked; rays started inside walk on."""
+    import drjit as dr
+
+    from convsss.pipeline.params import RenderMode
+    from convsss.pipeline.walk import RandomWalk
+
+    scene = mi.load_dict({
+        "type": "scene", "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 8, "height": 8},
+                                    "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 8], target=[0, 0, 0],
+                                                                               up=[0, 1, 0])},
+        "object": {"type": "sphere", "radius": 1.0, "bsdf": {"type": "null"},
+                   "interior": {"type": "homogeneous", "sigma_t": 4.0, "albedo": 0.999}},
+        "light": {"type": "point", "position": [0, 5, 0], "intensity": {"type": "rgb", "value": [10] * 3}}})
+    integrator = mi.load_dict({"type": "convsss", "walk_depth": float("inf")})
+    integrator.prepare(scene, scene.sensors()[0], 0)
+    tracer = integrator.session.tracer
+    walk = RandomWalk(scene, tracer.objects, tracer.params, RenderMode(float("inf")))
+    medium, n = scene.shapes()[0].interior_medium(), 256
+    sampler = mi.load_dict({"type": "independent"})
+    sampler.seed(1, n)
+    away = dr.normalize(mi.Vector3f(1.0, 0.0, 0.0) + 0.5 * mi.warp.square_to_uniform_sphere(sampler.next_2d()))
+    walk.trace(sampler, mi.Ray3f(dr.full(mi.Point3f, 10.0, n), away), medium)
+    assert walk.stats["leaked"] == n and walk.stats["events"] == 0
+    walk.reset()
+    sampler.seed(2, n)
+    walk.trace(sampler, mi.Ray3f(dr.zeros(mi.Point3f, n), mi.warp.square_to_uniform_sphere(sampler.next_2d())), medium)
+    assert walk.stats["leaked"] == 0 and walk.stats["events_per_path"] > 3.0

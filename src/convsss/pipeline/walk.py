@@ -120,6 +120,7 @@ class _Path:
     refracted: object  # light samples Eq. W5 found the refracted path for, and those it found none for
     unsolved: object
     ended: object
+    leaked: object  # left its object's medium unseen (_flight)
     active: object
     scores: tuple  # per differentiated medium, d log f / d sigma_t and d sigma_s so far (Eq. G1)
     jacobian: tuple  # and the radiance's derivatives (Eq. G2)
@@ -142,7 +143,7 @@ class _Path:
                      walking=dr.full(mi.Bool, False, n), events=dr.zeros(mi.UInt32, n),
                      scatterings=dr.zeros(mi.UInt32, n), refracted=dr.zeros(mi.UInt32, n),
                      unsolved=dr.zeros(mi.UInt32, n), ended=dr.full(mi.Bool, False, n),
-                     active=dr.full(mi.Bool, True, n),
+                     leaked=dr.full(mi.Bool, False, n), active=dr.full(mi.Bool, True, n),
                      scores=zero_scores(differentiated, n), jacobian=zero_scores(differentiated, n))
 
 
@@ -167,6 +168,13 @@ class RandomWalk(ShadowRays):
         #: The emitters each vertex samples one by one (``each_emitter``: a shadow ray each, and a shadow-ray loop
         #: each in the walk's kernel), or ``[None]``: one the scene chooses, as ``volpathmis`` does (``mode.plain``).
         self.lights = list(scene.emitters()) if each_emitter and not mode.plain and scene.emitters() else [None]
+        #: ``(medium, lo, hi)`` per object: its interior and its world bounding box (scene units), grown by 1e-3.
+        self.boxes = []
+        for obj in objects:
+            lo, hi = obj.bbox_mm / params.unit_mm
+            grow = 1e-3 * (hi - lo).max()
+            self.boxes.append((mi.MediumPtr(obj.shape.interior_medium()), mi.Point3f(*(lo - grow).tolist()),
+                               mi.Point3f(*(hi + grow).tolist())))
         #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.
         self.field = None
         #: ``(medium, sigma_t, sigma_s)`` of the homogeneous media whose paths are weighed by these coefficients
@@ -178,9 +186,19 @@ class RandomWalk(ShadowRays):
         #: roughness (Eq. G3 of :mod:`.derivatives`), else None.
         self.replayed = None
         #: Counts since :meth:`reset`: ``paths`` traced, scattering ``events`` in media, paths ``ended`` in the
-        #: field (in some channel) and ``capped`` at :data:`MAX_WALK` events.
+        #: field (in some channel), ``capped`` at :data:`MAX_WALK` events and ``leaked`` out of their object unseen.
         self.counts = {}
         self.reset()
+
+    def _outside(self, medium, p):
+        """Per lane, whether ``p`` lies outside the bounding boxes of every object whose interior is ``medium`` (a
+        MediumPtr) while it is some object's (the boxes grown by a thousandth of their size)."""
+        ours, inside = dr.full(mi.Bool, False, dr.width(p)), dr.full(mi.Bool, False, dr.width(p))
+        for medium_k, lo, hi in self.boxes:
+            here = medium == medium_k
+            ours |= here
+            inside |= here & dr.all((p >= lo) & (p <= hi))
+        return ours & ~inside
 
     def classify(self, si):
         """Per lane, the translucent object hit and its eta (:func:`.shadow.classify`)."""
@@ -197,7 +215,7 @@ class RandomWalk(ShadowRays):
         self.differentiated = [mi.MediumPtr(m) for m in media]
 
     def reset(self):  # the counts (:attr:`counts`) start again
-        self.counts = {"paths": 0, "events": 0, "ended": 0, "capped": 0, "refracted": 0, "unsolved": 0}
+        self.counts = {"paths": 0, "events": 0, "ended": 0, "capped": 0, "leaked": 0, "refracted": 0, "unsolved": 0}
 
     @property
     def stats(self):
@@ -232,13 +250,14 @@ class RandomWalk(ShadowRays):
             path = self._scatter(path, mei, scatter, sampler)
             path = self._surface(path, in_medium, escaped, sampler)
         dr.eval(path.result, path.valid, path.scatterings, path.refracted, path.unsolved, path.ended, path.events,
-                path.jacobian)
+                path.leaked, path.jacobian)
         self.counts["paths"] += dr.width(path.active)
         self.counts["events"] += int(dr.sum(mi.UInt64(path.scatterings))[0])
         self.counts["refracted"] += int(dr.sum(mi.UInt64(path.refracted))[0])
         self.counts["unsolved"] += int(dr.sum(mi.UInt64(path.unsolved))[0])
         self.counts["ended"] += int(dr.count(path.ended)[0])
         self.counts["capped"] += int(dr.count(path.events >= MAX_WALK)[0])
+        self.counts["leaked"] += int(dr.count(path.leaked)[0])
         return path
 
     def _roulette(self, path, sampler):
@@ -296,6 +315,14 @@ class RandomWalk(ShadowRays):
         null_probability = dr.sum(mei.sigma_n / mei.combined_extinction) / 3.0  # dr.mean: the width, a literal
         null = active_medium & (sampler.next_1d(active_medium) < null_probability)
         scatter = active_medium & ~null
+        # A vertex in an object's medium outside every box of the objects of that medium left them unseen (a vertex
+        # a rounding error past the boundary, a crack in the mesh) and would go on scattering through empty space to
+        # MAX_WALK events (10 paths in 2.4 million on a 4 mm milk bunny: a third of its render's time without
+        # roulette, which cut them sooner): it ends there.
+        leaked = scatter & self._outside(medium, mei.p)
+        path.leaked |= leaked
+        path.active &= ~leaked
+        scatter &= ~leaked
         path.last_null = null
         path.events[scatter] += 1
         path.scatterings[scatter] += 1
