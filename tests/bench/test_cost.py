@@ -13,6 +13,7 @@ def test_a_tiny_run_times_the_sample_and_the_three_commands():
     (row,) = result["rows"]
     assert row["scene"] == "milk4" and set(row["command_s"]) == {"inf", "auto", "mitsuba"}
     assert row["ratio"] == pytest.approx(row["convsss_s"] / row["volpathmis_s"])
+    assert row["ratio_no_rr"] == pytest.approx(row["convsss_no_rr_s"] / row["volpathmis_no_rr_s"])
     # the walk at 16² and 2 spp is one chunk: at least its kernel and the film's, each within the render's time
     assert row["kernel_count"] >= 2 and 0 < row["kernels_s"] <= row["convsss_s"]
     assert row["outside_kernels_s"] == pytest.approx(row["convsss_s"] - row["kernels_s"])

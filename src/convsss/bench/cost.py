@@ -4,10 +4,11 @@
 Per scene, at the same size and samples per pixel:
 
 1. **per sample**, warm, in this process: ``mi.render`` of the scene by ``convsss`` at ``walk_depth`` inf and by
-   ``volpathmis`` (no depth limit, no roulette: the walk's own settings), one untimed render each first (Dr.Jit
-   compiles), then ``runs`` renders of distinct seeds; medians. The last render's Dr.Jit kernel history splits
-   convsss's time into its kernels' (the walk's, one per chunk of paths, Mitsuba's film on one thread, the camera
-   rays) and the rest (Python between kernels, launches);
+   ``volpathmis``, each with its defaults (Russian roulette from depth 5: ``volpathmis``'s odds its throughput, at
+   most 0.95; the walk's its weight, at most 1) and both without roulette (``rr_depth`` 2^30), one untimed render
+   each first (Dr.Jit compiles), then ``runs`` renders of distinct seeds; medians. The last default convsss
+   render's Dr.Jit kernel history splits its time into its kernels' (the walk's, one per chunk of paths, Mitsuba's
+   film on one thread, the camera rays) and the rest (Python between kernels, launches);
 2. **per command**, fresh processes on the scene written to a file: ``convsss render --walk-depth inf``, ``convsss
    render`` (the default, ``auto``) and Mitsuba's own ``mitsuba`` on the same file, one untimed run of each first,
    then ``runs`` each, interleaved; medians.
@@ -55,9 +56,16 @@ def _render_seconds(mi, dr, scene, integrator, spp, seed, history=False):
     return seconds, kernels
 
 
+#: Part 1's integrators, by label: the walk at inf and ``volpathmis``, with their defaults and without roulette.
+INTEGRATORS = {"convsss": {"type": "convsss", "walk_depth": float("inf")}, "volpathmis": {"type": "volpathmis"},
+               "convsss_no_rr": {"type": "convsss", "walk_depth": float("inf"), "rr_depth": 2**30},
+               "volpathmis_no_rr": {"type": "volpathmis", "rr_depth": 2**30}}
+
+
 def per_sample(bench_scene, width, spp, runs):
-    """Part 1 (module doc): ``{convsss_s, volpathmis_s, ratio, kernels_s, kernel_count, outside_kernels_s,
-    longest_kernels_s}`` (medians of ``runs``; the kernels of the last convsss render)."""
+    """Part 1 (module doc): the median seconds by label of :data:`INTEGRATORS` (``{label}_s``), the ratios
+    ``ratio`` (defaults) and ``ratio_no_rr``, and the last default convsss render's ``kernels_s``, ``kernel_count``,
+    ``outside_kernels_s`` and ``longest_kernels_s``."""
     from ..pipeline.integrator import register
     from .scenes import scene_dict
 
@@ -67,10 +75,9 @@ def per_sample(bench_scene, width, spp, runs):
     description = scene_dict(bench_scene, width)
     description.pop("integrator", None)
     scene = mi.load_dict(description)
-    integrators = {"convsss": mi.load_dict({"type": "convsss", "walk_depth": float("inf")}),
-                   "volpathmis": mi.load_dict({"type": "volpathmis", "max_depth": -1, "rr_depth": 2**30})}
     seconds, kernels = {}, None
-    for label, integrator in integrators.items():
+    for label, spec in INTEGRATORS.items():
+        integrator = mi.load_dict(spec)
         _render_seconds(mi, dr, scene, integrator, spp, 0)
         runs_s = []
         for seed in range(1, runs + 1):
@@ -79,8 +86,9 @@ def per_sample(bench_scene, width, spp, runs):
             runs_s.append(took)
             kernels = history if history is not None else kernels
         seconds[label] = statistics.median(runs_s)
-    return {"convsss_s": seconds["convsss"], "volpathmis_s": seconds["volpathmis"],
-            "ratio": seconds["convsss"] / seconds["volpathmis"], "kernels_s": sum(kernels),
+    return {**{f"{label}_s": value for label, value in seconds.items()},
+            "ratio": seconds["convsss"] / seconds["volpathmis"],
+            "ratio_no_rr": seconds["convsss_no_rr"] / seconds["volpathmis_no_rr"], "kernels_s": sum(kernels),
             "kernel_count": len(kernels), "outside_kernels_s": max(seconds["convsss"] - sum(kernels), 0.0),
             "longest_kernels_s": sorted(kernels, reverse=True)[:6]}
 
@@ -141,15 +149,17 @@ def cost_table(result):
     meta = result["meta"]
     cached = "without" if meta["PYTHONDONTWRITEBYTECODE"] else "with"
     lines = [f"{meta['width']}², {meta['spp']} spp, medians of {meta['runs']} runs; per sample warm in one process "
-             f"(convsss at walk_depth inf, volpathmis without roulette); commands in fresh processes, {cached} "
-             "bytecode caches",
-             f"{'scene':18s} {'convsss s':>9s} {'volpath s':>9s} {'ratio':>6s} {'kernels s':>9s} {'(n)':>4s} "
-             f"{'outside s':>9s} | {'cmd inf s':>9s} {'cmd auto s':>10s} {'mitsuba s':>9s}  longest kernels s"]
+             f"(convsss at walk_depth inf, volpathmis; defaults, and no roulette: no rr); commands in fresh "
+             f"processes, {cached} bytecode caches",
+             f"{'scene':18s} {'convsss s':>9s} {'volpath s':>9s} {'ratio':>6s} {'no rr: cv':>9s} {'vp':>6s} "
+             f"{'ratio':>6s} {'kernels s':>9s} {'(n)':>4s} {'outside s':>9s} | {'cmd inf s':>9s} {'cmd auto s':>10s} "
+             f"{'mitsuba s':>9s}  longest kernels s"]
     for row in result["rows"]:
         command = row.get("command_s")
         tail = (f"{command['inf']:9.3f} {command['auto']:10.3f} {command['mitsuba']:9.3f}" if command else
                 f"{'-':>9s} {'-':>10s} {'-':>9s}")
         lines.append(f"{row['scene']:18s} {row['convsss_s']:9.3f} {row['volpathmis_s']:9.3f} {row['ratio']:6.2f} "
+                     f"{row['convsss_no_rr_s']:9.3f} {row['volpathmis_no_rr_s']:6.3f} {row['ratio_no_rr']:6.2f} "
                      f"{row['kernels_s']:9.3f} {row['kernel_count']:4d} {row['outside_kernels_s']:9.3f} | {tail}  "
                      + " ".join(f"{k:.3f}" for k in row["longest_kernels_s"]))
     return "\n".join(lines)

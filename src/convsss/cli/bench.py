@@ -307,7 +307,8 @@ def bench_walk_command(scenes, width, spp, reference_spp, depths, plot_path, out
 def bench_cost_command(scenes, width, spp, runs, commands, out_file, as_json, progress):
     """What a sample and a command cost where the render walks: convsss at walk_depth inf (volpathmis's
     estimator) against volpathmis, warm in one process, with convsss's kernels and the time outside them; and the
-    whole commands in fresh processes beside Mitsuba's own on the same scene file. Run it alone on the machine."""
+    whole commands in fresh processes beside Mitsuba's own on the same scene file. Both renderers with their defaults
+    (Russian roulette from depth 5), and both without roulette. Run it alone on the machine."""
     from ..bench.cost import bench_cost, cost_table
 
     chosen = scenes or ("milk4", "skin40-back", "ketchup20", "armadillo30-area")
