@@ -116,6 +116,21 @@ def test_mitsuba_users_path_renders_with_volpathmis_and_convsss(mi, tmp_path, sp
     assert mask.any() and truth[mask].mean() > 0 and ours[mask].mean() > 0
 
 
+def test_the_registry_lock_is_never_held_while_dr_jit_evaluates(mi, monkeypatch):
+    """The suite hung once loading the example scene: a constructor held the registry's lock while the medium's
+    fingerprint waited for Dr.Jit, and that wait ran the scene's other constructor on the same thread, which asked
+    for the lock. The fingerprint (the only Dr.Jit evaluation here) now runs with the lock free."""
+    from pathlib import Path
+
+    from convsss.media import named
+
+    held = []
+    fingerprint = named._fingerprint
+    monkeypatch.setattr(named, "_fingerprint", lambda *args: held.append(named._LOCK.locked()) or fingerprint(*args))
+    load_scene(Path(__file__).parents[2] / "examples" / "skin_preset.xml", width=8, height=8)
+    assert len(held) >= 2 and not any(held)
+
+
 def test_the_example_scene_names_a_preset_and_a_colour(mi):
     from pathlib import Path
 

@@ -308,7 +308,7 @@ def _colour_medium(values, unit_mm):
 # ---- The Mitsuba plugin ----------------------------------------------------------------------------------------
 
 #: Per medium made: its address -> (NamedMedium, its coefficients as made). Guarded by :data:`_LOCK` (Mitsuba
-#: builds a scene's objects on several threads).
+#: builds a scene's objects on several threads), which is never held while Dr.Jit evaluates anything.
 _MADE = {}
 _LOCK = threading.Lock()
 #: While :func:`equivalents` holds: per textured medium's key, the heterogeneous medium's dictionary the constructor
@@ -341,8 +341,12 @@ def construct(props):
     medium = mi.load_dict(equivalent or named.medium_dict())
     if props.id():
         medium.set_id(props.id())
+    # The fingerprint reads the medium's arrays outside the lock: waiting for Dr.Jit, this thread may run another
+    # pending constructor of the same scene (Mitsuba builds its objects in parallel), which takes the lock too
+    # (the suite hung there once, in test_named's example scene)
+    made = (named, _fingerprint(mi, medium))
     with _LOCK:
-        _MADE[medium.ptr] = (named, _fingerprint(mi, medium))
+        _MADE[medium.ptr] = made
     return medium
 
 
