@@ -21,6 +21,10 @@ def test_a_tiny_run_times_the_sample_and_the_three_commands():
 
 
 def test_the_command_explains_itself_and_refuses_an_unknown_scene():
+    from convsss.bench.walk import WALK_SCENES
+    from convsss.cli.bench import WALK_SCENE_NAMES
+
+    assert WALK_SCENE_NAMES == tuple(WALK_SCENES)  # the names the command line offers are the scenes there are
     runner = CliRunner()
     assert "--no-commands" in runner.invoke(cli, ["bench", "cost", "--help"]).output
     result = runner.invoke(cli, ["bench", "cost", "--scene", "teapot"])

@@ -10,6 +10,11 @@ from ..bench.scenes import REFERENCE_POINTS, SCENES
 from .main import cli
 from .options import PROGRESS
 
+#: ``bench walk``'s scenes (the keys of :data:`convsss.bench.walk.WALK_SCENES`, named here so that the command line
+#: does not import that module): ``bench walk`` and ``bench cost`` take them.
+WALK_SCENE_NAMES = ("skin40-back", "armadillo30-area", "milk4", "ketchup20", "marble40-area", "dragon40-sun",
+                    "lucy40-side", "potato40-env")
+
 #: The objects' profile in a benchmark: the integrator's ``profile`` parameter (checked as a render checks it).
 PROFILE = click.option("--profile", default="", metavar="SPEC",
                        help="The object's diffusion profile, as the integrator's profile parameter: a model (dipole, "
@@ -234,8 +239,7 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, walk_depth, out
 
 @bench.command("walk")
 @click.option("--scene", "scenes", multiple=True,
-              type=click.Choice(["skin40-back", "armadillo30-area", "milk4", "ketchup20", "marble40-area",
-                                 "dragon40-sun", "lucy40-side", "potato40-env"]),
+              type=click.Choice(WALK_SCENE_NAMES),
               help="A scene (repeat for several) [default: all]: the 40 mm skin1 bunny lit from behind, a 30 mm skin1 "
                    "armadillo behind a smooth dielectric under an area light, a 4 mm whole-milk bunny, a 20 mm "
                    "ketchup bunny (null boundary, the key and back lights), a 40 mm marble bunny behind a "
@@ -289,8 +293,7 @@ def bench_walk_command(scenes, width, spp, reference_spp, depths, plot_path, out
 
 @bench.command("cost")
 @click.option("--scene", "scenes", multiple=True,
-              type=click.Choice(["skin40-back", "armadillo30-area", "milk4", "ketchup20", "marble40-area",
-                                 "dragon40-sun", "lucy40-side", "potato40-env"]),
+              type=click.Choice(WALK_SCENE_NAMES),
               help="A scene of bench walk (repeat for several) [default: milk4, skin40-back, ketchup20, "
                    "armadillo30-area].")
 @click.option("--width", type=click.IntRange(16, 4096), default=192, show_default=True,

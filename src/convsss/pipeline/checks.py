@@ -44,7 +44,9 @@ def mesh_topology(shape):
     direction (0 when the faces are wound consistently, each edge traversed once each way).
     """
     positions, faces = mesh_arrays(shape)
-    key = hashlib.blake2b(positions.tobytes() + faces.tobytes(), digest_size=16).digest()
+    digest = hashlib.blake2b(positions.tobytes(), digest_size=16)
+    digest.update(faces.tobytes())
+    key = digest.digest()
     if key not in TOPOLOGIES:
         TOPOLOGIES[key] = _topology(positions, faces)
         while len(TOPOLOGIES) > TOPOLOGIES_KEPT:
