@@ -34,7 +34,7 @@ import numpy as np
 
 from ..backend import import_mitsuba, to_numpy3
 from ..fresnel import same_eta
-from ..hashtable import capacity, empty, probe
+from ..hashtable import capacity, empty, grown, probe
 from ..jit import njit
 from ..profiles.incidence import GAIN_NODES, Orders, exit_normalization, gain_table
 from .mis import power_heuristic
@@ -242,36 +242,46 @@ def stratified_directions(points, owners, spacing, seed, strata=4):
         (K, 2) float32 in ``[0, 1)``.
     """
     rng = np.random.default_rng([int(seed), 0x57A7])
-    cells = strata * strata
-    key, rank = _voxel_ranks(np.ascontiguousarray(points, dtype=np.float64), owners.astype(np.int64), spacing)
-    shift = (key.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15) >> np.uint64(40)).astype(np.int64)
-    cell = rng.permutation(cells)[(rank + shift) % cells]
-    u = (np.stack([cell % strata, cell // strata], axis=1) + rng.random((len(owners), 2))) / strata
-    return np.minimum(u, np.nextafter(1.0, 0.0)).astype(np.float32)
+    perm = rng.permutation(strata * strata)
+    jitter = rng.random((len(owners), 2))
+    return _stratified(np.ascontiguousarray(points, dtype=np.float64), owners.astype(np.int64), spacing, perm,
+                       jitter, strata)
 
 
 @njit(cache=True)
-def _voxel_ranks(points, owners, spacing):
-    """Per path, a hash of the voxel of edge ``spacing`` its point falls in (collisions merge voxels) and the number
-    of earlier paths with the same hash (counted in a :mod:`~convsss.hashtable`)."""
+def _stratified(points, owners, spacing, perm, jitter, strata):
+    """:func:`stratified_directions` from its random numbers: per path, the voxel of edge ``spacing`` its point falls
+    in (a hash of its three indices; collisions merge voxels), the number of earlier paths in it (counted in a
+    :mod:`~convsss.hashtable` that grows as voxels are met: they are about 16 times fewer than the paths), and the
+    jittered cell ``perm[(rank + shift) mod strata^2]`` of the voxel's grid."""
     n = owners.shape[0]
-    keys, counts = empty(capacity(n))
-    key = np.empty(n, dtype=np.int64)
-    rank = np.empty(n, dtype=np.int64)
-    slot = 0
+    cells = strata * strata
+    keys, counts = empty(capacity(n // 8 + 1))
+    used = 0
+    out = np.empty((n, 2), dtype=np.float32)
+    below_one = np.nextafter(1.0, 0.0)
+    slot, key = 0, np.int64(0)
     for k in range(n):
         p = owners[k]
         i = np.int64(np.floor(points[p, 0] / spacing))
         j = np.int64(np.floor(points[p, 1] / spacing))
         m = np.int64(np.floor(points[p, 2] / spacing))
-        key[k] = (i * 73856093) ^ (j * 19349663) ^ (m * 83492791)
-        if k == 0 or key[k] != key[k - 1]:  # consecutive paths mostly share a voxel (the samples follow the surface)
-            slot = probe(keys, counts, key[k])
-        if counts[slot] < 0:
-            keys[slot], counts[slot] = key[k], 0
-        rank[k] = counts[slot]
+        here = (i * 73856093) ^ (j * 19349663) ^ (m * 83492791)
+        if k == 0 or here != key:  # consecutive paths mostly share a voxel (the samples follow the surface)
+            key = here
+            slot = probe(keys, counts, key)
+            if counts[slot] < 0:
+                if 2 * (used + 1) > keys.shape[0]:
+                    keys, counts = grown(keys, counts, 2 * keys.shape[0])
+                    slot = probe(keys, counts, key)
+                keys[slot], counts[slot] = key, 0
+                used += 1
+        shift = np.int64((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(40))
+        cell = perm[(counts[slot] + shift) % cells]
         counts[slot] += 1
-    return key, rank
+        out[k, 0] = np.float32(min((cell % strata + jitter[k, 0]) / strata, below_one))
+        out[k, 1] = np.float32(min((cell // strata + jitter[k, 1]) / strata, below_one))
+    return out
 
 
 def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop=None, albedo=None, orders=Orders.ALL,
@@ -347,8 +357,9 @@ def indirect_irradiance(incident, position, normal, area, eta, paths, seed, stop
         weight = to_numpy3(entry(local.z) * dr.pi * scale, np.float64)
         radiance, hits = incident(sampler, rays, weight, owner)
         deferred += hits
+        first, last = owner[0], owner[-1] + 1  # owners ascend: the chunk's points are a range
         for c in range(3):
-            out[:, c] += np.bincount(owner, radiance[:, c], minlength=n)
+            out[first:last, c] += np.bincount(owner - first, radiance[:, c], minlength=last - first)
     return np.maximum(np.nan_to_num(out), 0.0), deferred
 
 
