@@ -1,9 +1,10 @@
 """Tiny scenes for the renderer's tests: a sphere of a preset material seen by a small camera."""
 
+import numpy as np
 import pytest
 
 import convsss
-from convsss.media.dicts import translucent
+from convsss.media.dicts import medium_dict, translucent
 
 
 @pytest.fixture(scope="session")
@@ -52,3 +53,23 @@ def object_mask(mi):
     from convsss.pipeline.reference import translucent_pixels
 
     return translucent_pixels
+
+
+@pytest.fixture
+def object_pair(mi, sphere_scene):
+    """``(scene, pixels)``: a 40 mm marble sphere behind glass (diffusion holds) and a 14 mm skin1 one before it (it
+    fails: auto walks it and renders the marble by its transport) under a spherical light, 32², convsss's default
+    integrator; ``pixels[name]`` (32, 32) bool, ``name`` marble or skin."""
+    T = mi.ScalarTransform4f
+    light = {"light": {"type": "sphere", "center": [60.0, 120.0, 80.0], "radius": 20.0,
+                       "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [50 / np.pi] * 3}}}}
+    skin = translucent({"type": "sphere", "radius": 7.0, "to_world": T().translate([24.0, -12.0, 40.0])},
+                       convsss.material("skin1"), boundary="dielectric")
+    scene = sphere_scene(material="marble", radius=20.0, boundary="dielectric", res=32, emitters=light,
+                         extra={"skin": {**skin, "interior": medium_dict(convsss.material("skin1"))}},
+                         integrator={"walk_depth": "auto"})
+    scene["object"]["interior"] = medium_dict(convsss.material("marble"))
+    scene = mi.load_dict(scene)
+    index = mi.load_dict({"type": "convsss", "walk_depth": 0.0, "aovs": "object"})
+    objects = np.array(mi.render(scene, integrator=index, spp=1))[..., -1]
+    return scene, {name: np.isclose(objects, k) for k, name in ((1, "marble"), (2, "skin"))}

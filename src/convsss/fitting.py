@@ -373,7 +373,8 @@ def _forward_model(mi, scene, sensor, object, fit_eta, seed, spp):
     name = _object_to_fit(found, object, fit_eta)
     # The default render's forward model (module doc): walks where it walks to the end, else the transport's.
     chosen = next(o for o in found if o.name == name)
-    walks = render_mode(asked, found).walk_depth == math.inf and chosen.classes is None
+    mode = render_mode(asked, found)  # where some objects keep their transport (auto), so does the fit
+    walks = mode.walk_depth == math.inf and not mode.transported and chosen.classes is None
     integrator = mi.load_dict({"type": "convsss", **params, **({"rr_depth": NO_ROULETTE} if walks else
                                                                {"walk_depth": 0.0})})
     spp = spp or (WALK_SPP if walks else TRANSPORT_SPP)

@@ -127,6 +127,14 @@ def test_a_render_that_does_not_walk_refuses_gradients(mi):
     assert str(error) == NOT_WALKED
 
 
+def test_a_render_that_keeps_the_transport_on_some_object_refuses_gradients(mi, object_pair):
+    """auto walks the skin sphere and renders the marble one by its transport, which has no derivatives: refused as
+    a render that does not walk, even for the walked medium's."""
+    scene, _ = object_pair
+    error = _refusal(mi, scene, "skin.interior_medium.albedo.value.value")
+    assert str(error) == NOT_WALKED
+
+
 @pytest.mark.parametrize("key", ["light.intensity.value", "sphere.bsdf.eta"])
 def test_a_parameter_other_than_the_medium_and_the_roughness_is_refused_by_name(mi, key):
     """A light's, the boundary's index (it bends the paths: not a weight) or any other parameter with gradients on

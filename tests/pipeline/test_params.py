@@ -87,16 +87,24 @@ def test_a_parameter_of_another_transport_warns_that_it_has_no_effect(mi):
         mi.load_dict({"type": "convsss", "transport": "convolution", "layers": 8, "downsample": 0.5})
 
 
-def test_walk_depth_auto_walks_where_diffusion_fails_on_some_object():
+def test_walk_depth_auto_walks_where_diffusion_fails_and_keeps_the_transport_where_it_holds():
     from types import SimpleNamespace
 
-    from convsss.pipeline.params import RenderMode, render_mode
+    from convsss.pipeline.params import RenderMode, render_mode, walks_alone
 
-    holds, fails = (SimpleNamespace(diffusion_holds=lambda answer=answer: answer) for answer in (True, False))
+    holds, fails, also = (SimpleNamespace(diffusion_holds=lambda answer=answer: answer, key=(k, 0))
+                          for k, answer in enumerate((True, False, False)))
     auto = RenderParams(walk_depth="auto", layers=4)
     assert auto.walk_depth == "auto"
     assert render_mode(auto, [holds, holds]) == RenderMode(0.0, straight=False)
-    assert render_mode(auto, [holds, fails]) == RenderMode(float("inf"), straight=True)
+    # Each object its own way: the one where diffusion holds keeps its transport, the other walks.
+    mixed = render_mode(auto, [holds, fails])
+    assert mixed == RenderMode(float("inf"), straight=True, transported=frozenset({holds.key}))
+    assert mixed.transports(holds) and not mixed.transports(fails)
+    assert not walks_alone(auto, mixed)  # the transported object needs stages 2-5
+    walked = render_mode(auto, [fails, also])
+    assert walked == RenderMode(float("inf"), straight=True) and walks_alone(auto, walked)
+    assert not walked.transports(fails) and RenderMode(0.0).transports(fails)
     # Given: as it is; walks ended in the field take every light but the environment straight, those to the end
     # only what no path reaches (volpathmis).
     assert render_mode(RenderParams(walk_depth=4.0), [fails]) == RenderMode(4.0, straight=True)

@@ -60,14 +60,14 @@ def test_paths_ending_at_max_depth_return_evaluated_radiance(tmp_path):
 def test_more_recorded_hits_than_room_trace_the_same_paths_again(mi, sphere_scene, monkeypatch):
     """Hits the screen table does not know are recorded in the path loop; with room for almost none, the paths are
     traced again from a copy of the sampler and the image is the same."""
-    import convsss.pipeline.path_tracer as path_tracer
+    import convsss.pipeline.lookups as lookups_module
 
     scene = mi.load_dict(sphere_scene(material="wholemilk", res=32, spp=2, floor=True, boundary="dielectric",
                                       integrator={"indirect_samples": 0}))
     image = np.asarray(mi.render(scene, seed=3))
     lookups = scene.integrator().stats["exitance_lookups"]
     assert lookups > 10
-    monkeypatch.setattr(path_tracer, "RECORD_ROOM", 1e-6)
+    monkeypatch.setattr(lookups_module, "RECORD_ROOM", 1e-6)
     again = np.asarray(mi.render(scene, seed=3))
     assert scene.integrator().stats["exitance_lookups"] == lookups
     np.testing.assert_allclose(again, image, rtol=1e-5, atol=1e-7)

@@ -171,6 +171,39 @@ def test_walk_depth_auto_walks_where_diffusion_fails_and_keeps_the_transport_whe
     assert rendered == {"skin1": ("inf", True, "auto"), "marble": ("0", False, "auto")}
 
 
+def test_auto_renders_each_object_its_own_way(mi, object_pair):
+    """Issue 60: where diffusion holds on one object and fails on another, auto walks the second and renders the
+    first by its transport, which the walks read where they meet it (paper Eq. 7): the marble as walk_depth 0 renders
+    it, the skin as walks to the end do, within their noise (two seeds each)."""
+    scene, pixels = object_pair
+    assert pixels["marble"].sum() > 100 and pixels["skin"].sum() > 10
+    images = {}
+    for depth in ("auto", 0.0, "inf"):
+        integrator = mi.load_dict({"type": "convsss", "walk_depth": depth})
+        images[depth] = [np.array(mi.render(scene, integrator=integrator, spp=64, seed=s), dtype=np.float64)[..., :3]
+                         for s in (1, 2)]
+        if depth == "auto":
+            assert integrator.stats["walk_depth"] == "inf" and integrator.stats["transported"] == ["object"]
+            assert integrator.stats["walk"]["events_per_path"] < 1.0  # the marble's paths do not walk inside
+    for name, other in (("marble", 0.0), ("skin", "inf")):
+        (ours, e_ours), (theirs, e_theirs) = (_means_and_noise([image[pixels[name]][:, None] for image in images[d]])
+                                              for d in ("auto", other))
+        assert np.all(np.abs(ours - theirs) <= 0.01 * theirs + 4 * np.hypot(e_ours, e_theirs)), (name, ours / theirs)
+
+
+def test_walks_that_meet_more_transported_objects_than_room_trace_the_same_paths_again(mi, object_pair,
+                                                                                       monkeypatch):
+    """The walks record their hits on a transported object in their loop; with room for almost none they are traced
+    again from a copy of the sampler and the image is the same."""
+    import convsss.pipeline.lookups as lookups
+
+    scene, _ = object_pair
+    auto = mi.load_dict({"type": "convsss", "walk_depth": "auto"})
+    image = np.array(mi.render(scene, integrator=auto, spp=4, seed=3))
+    monkeypatch.setattr(lookups, "RECORD_ROOM", 1e-6)
+    np.testing.assert_array_equal(np.array(mi.render(scene, integrator=auto, spp=4, seed=3)), image)
+
+
 def test_paths_drawn_by_one_medium_and_weighed_by_another_render_the_other(mi, sphere_scene):
     """RandomWalk.evaluated (a fit's trial material): a 2 mm skin1 sphere's paths, drawn by its medium and weighed by
     skin2's coefficients (mean free paths 0.6-0.9 of skin1's, albedos higher), render the skin2 sphere within both

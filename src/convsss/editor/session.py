@@ -233,8 +233,10 @@ class EditSession:
             why = ("diffusion holds on every object" if p.walk_depth == "auto" else "walk_depth 0")
             return f"the {p.transport} transport ({why})"
         if p.walk_depth == "auto":
-            return ("random walks to their end (walk_depth auto: diffusion fails on some object, thin or small in "
-                    "transport mean free paths, or of low albedo)")
+            kept = self.integrator.session.stats.get("transported") or []
+            return ("random walks to their end where diffusion fails (walk_depth auto: thin or small in transport "
+                    "mean free paths, or of low albedo)" + (f"; the {p.transport} transport on {', '.join(kept)}, "
+                                                            "where it holds" if kept else ""))
         return f"random walks (walk_depth {mode})"
 
     def image_png(self):

@@ -54,7 +54,7 @@ mi = import_mitsuba()
 
 #: What a gradient through a render that does not walk is told.
 NOT_WALKED = ("derivatives through a convsss render are those of its random walk: render with walk_depth inf (or "
-              "auto where it walks); walks ended in the diffusion field and the transport have none")
+              "auto where it walks every object); walks ended in the diffusion field and the transport have none")
 #: Camera samples per kernel of a differentiated render (as :data:`~.integrator.WALK_LANES`).
 LANES = 1 << 20
 
@@ -246,7 +246,7 @@ def _walk_to_the_end(session):
     """The prepared walk of ``session`` (a :class:`~.session.RenderSession`), refused in one line where it does not
     walk to the end."""
     walk = session.tracer.walk if session.tracer is not None else None
-    if walk is None or walk.field is not None or session.mode.walk_depth != math.inf:
+    if walk is None or walk.field is not None or session.mode.walk_depth != math.inf or session.mode.transported:
         raise ConvsssError(NOT_WALKED)
     return walk
 

@@ -12,12 +12,43 @@ from .mesh_exitance import MeshExitance, usable
 
 mi = import_mitsuba()
 
+#: Room for recorded hits (:class:`HitRecords`), per path; more take a second, identical trace.
+RECORD_ROOM = 1.0
+
 
 def _color(array):
     """(K, 3) numpy -> mi.Color3f (aligned copies, :func:`~convsss.backend.aligned`)."""
     a = np.asarray(array, dtype=np.float32).T
     return mi.Color3f(*(mi.Float(aligned(c, np.float32)) for c in a))
 
+
+class HitRecords:
+    """The hits on translucent objects whose ``M`` a kernel's paths need (:meth:`ExitanceLookups.add_recorded`): per
+    hit the object, point, normal, weight ``beta (1/pi) F_t`` (paper Eq. 7 without ``M``), lane, whether it is a
+    camera ray's first hit, and the face it is on. Room for ``room`` of them (:data:`RECORD_ROOM` per lane of a kernel
+    of ``lanes`` paths): a kernel that records more (:attr:`count`) is traced again with room for all (its sampler
+    copied before)."""
+
+    def __init__(self, lanes, room=None):
+        self.room = max(1, int(RECORD_ROOM * lanes)) if room is None else room
+        # Uninitialized: only the first ``count`` are written and read, so the rest is never touched (zeroing room
+        # for every lane would write all of it on every render, for nothing).
+        self.records = tuple(dr.empty(t, self.room) for t in (mi.Int32, mi.Point3f, mi.Vector3f, mi.Color3f,
+                                                               mi.UInt32, mi.Bool, mi.UInt32))
+        self.recorded = dr.zeros(mi.UInt32, 1)
+
+    def add(self, asked, values):
+        """Append ``values`` (per lane, in :attr:`records`' order) of the ``asked`` lanes, counting them all and keeping
+        the first :attr:`room` (opaque: the kernel outlives the image's size)."""
+        slot = dr.scatter_inc(self.recorded, mi.UInt32(0), asked)
+        kept = asked & (slot < dr.opaque(mi.UInt32, self.room))
+        for record, value in zip(self.records, values):
+            dr.scatter(record, value, slot, kept)
+
+    @property
+    def count(self):
+        """Hits recorded, kept or not (after the kernel ran)."""
+        return int(self.recorded.numpy()[0])
 
 
 class ExitanceLookups:

@@ -113,6 +113,11 @@ class TranslucentObject:
         return (shapes == self.shape_index) & (instances == self.instance_index)
 
     @property
+    def key(self):
+        """``(shape_index, instance_index)``: the object, whatever list it is in."""
+        return self.shape_index, self.instance_index
+
+    @property
     def eta(self):
         return self.material.eta
 

@@ -72,7 +72,7 @@ def walks_alone(params, mode):
     """Whether a render with ``params`` in ``mode`` (a :class:`RenderMode`) needs none of stages 2-5 (samples,
     irradiance, transports, screen): every walk goes to its end and no AOV asks for the transports' exitance or the
     samples' irradiance."""
-    return mode.walk_depth == math.inf and not reads_transports(params.aovs)
+    return mode.walk_depth == math.inf and not mode.transported and not reads_transports(params.aovs)
 
 
 def aov_channels(names):
@@ -149,10 +149,11 @@ def render_parameters():
                   "in the diffusion field solved on the object's volume where it scatters at least this many "
                   "transport mean free paths (1/sigma_t') below the surface, in the channels where diffusion holds. "
                   "0 renders with the transport alone (paper Eq. 7); inf follows every walk to its end, which is "
-                  "Mitsuba's volpathmis for those objects. auto: the transport where diffusion holds on every "
-                  "object (at least 20 transport mean free paths across its mean chord 4V/A, reduced albedo at least "
-                  "0.95), else walks to their end with every light but the environment sampled through smooth "
-                  "boundaries along the path that refracts to it (Eq. W5): where diffusion fails walks are short. "
+                  "Mitsuba's volpathmis for those objects. auto: each object its own way: the transport where "
+                  "diffusion holds (at least 20 transport mean free paths across its mean chord 4V/A, reduced albedo "
+                  "at least 0.95), walks to their end elsewhere, with every light but the environment sampled "
+                  "through smooth boundaries along the path that refracts to it (Eq. W5): where diffusion fails walks "
+                  "are short; a walk that meets an object its transport renders reads its exitance there. "
                   "Where a transport is named and walk_depth is not, 0.", low=0.0, infinite=True, words=("auto",)),
         Parameter("refraction", str, "manifold", "How a walk's scattering vertex reaches a light behind a smooth "
                   "dielectric boundary (a delta light always; every light but the environment in auto's walks and "
@@ -232,10 +233,15 @@ class RenderMode:
         Whether walks sample every light but the environment through smooth boundaries (Eq. W5, the refracted path
         to it, weighed against the paths that hit it): walks ended in the field, and ``auto``'s walks; at an explicit
         inf only a delta light, which no path reaches, so that the walk stays ``volpathmis``.
+    transported : frozenset
+        The objects (their :attr:`~.objects.TranslucentObject.key`) that their transport renders while the others
+        walk (``auto`` on a scene where diffusion holds on some objects only): a path that meets one reads its
+        exitance (paper Eq. 7) instead of walking into it.
     """
 
     walk_depth: float
     straight: bool = False
+    transported: frozenset = frozenset()
 
     @property
     def walks(self):
@@ -253,20 +259,28 @@ class RenderMode:
         smooth boundaries but a delta light's, one emitter chosen per vertex (an explicit inf)."""
         return self.walk_depth == math.inf and not self.straight
 
+    def transports(self, obj):
+        """Whether the translucent object ``obj`` is rendered by its transport's exitance: every object where nothing
+        walks, the :attr:`transported` ones where the others walk."""
+        return not self.walks or obj.key in self.transported
+
     def __str__(self):
         return f"{self.walk_depth:g}"
 
 
 def render_mode(params, objects):
     """The :class:`RenderMode` of ``params`` for the translucent ``objects``: ``walk_depth`` as given, or for
-    ``auto`` 0 (the transport) where diffusion holds on every object
+    ``auto`` each object its own way (issue 60): 0 (the transport) where diffusion holds on every object
     (:meth:`~.objects.TranslucentObject.diffusion_holds`), else inf with every light but the environment straight
-    through smooth boundaries."""
+    through smooth boundaries, the objects where diffusion holds still rendered by their transport."""
     if params.walk_depth != "auto":
         depth = float(params.walk_depth)
         return RenderMode(depth, straight=0.0 < depth < math.inf)
-    walk = not all(obj.diffusion_holds() for obj in objects)
-    return RenderMode(math.inf if walk else 0.0, straight=walk)
+    holds = [obj.diffusion_holds() for obj in objects]
+    if all(holds):
+        return RenderMode(0.0)
+    return RenderMode(math.inf, straight=True,
+                      transported=frozenset(obj.key for obj, held in zip(objects, holds) if held))
 
 
 class IgnoredParameterWarning(UserWarning):

@@ -72,7 +72,7 @@ import numpy as np
 
 from ..backend import import_mitsuba, to_numpy3
 from .irradiance import Leaving, fresnel_transmittance, refracted_cosine
-from .lookups import ExitanceLookups
+from .lookups import ExitanceLookups, HitRecords
 from .mis import power_heuristic
 from .shadow import Shadows, classify
 from .walk import RandomWalk
@@ -85,17 +85,6 @@ MAX_EMITTERS_SUMMED = 8
 THROUGH_ROULETTE = 0.1
 #: Light that a chord dims below this fraction in every channel is not followed through the object (Eq. S3).
 CROSSING_FLOOR = 1e-3
-#: Room for recorded hits (those the screen table does not know), per path; more take a second, identical trace.
-RECORD_ROOM = 1.0
-
-
-def _record(records, count, room, asked, values):
-    """Append ``values`` (per lane) of the ``asked`` lanes to ``records``, counting them all in ``count`` and keeping
-    the first ``room`` (opaque: the kernel outlives the image's size)."""
-    slot = dr.scatter_inc(count, mi.UInt32(0), asked)
-    kept = asked & (slot < dr.opaque(mi.UInt32, room))
-    for record, value in zip(records, values):
-        dr.scatter(record, value, slot, kept)
 
 
 class PathTracer:
@@ -138,7 +127,7 @@ class PathTracer:
         #: The shadow rays, through every translucent object of the scene (``shadows``, or this tracer's ``objects``).
         self.shadows = shadows or Shadows(scene, objects, params.unit_mm)
         #: Where ``mode`` walks, the camera's paths walk through the objects' media (:mod:`.walk`).
-        self.walk = RandomWalk(scene, objects, params, mode, self.per_emitter) if mode.walks else None
+        self.walk = RandomWalk(scene, objects, params, mode, self.per_emitter, self) if mode.walks else None
         #: Where the paths read ``M``: the screen table, the mesh tables and the transports (:mod:`.lookups`).
         self.lookups = ExitanceLookups(objects, params.unit_mm, stop)
         self.attach([None] * len(objects))
@@ -158,7 +147,7 @@ class PathTracer:
         (:func:`.shadow.classify`)."""
         return classify(self.objects, si)
 
-    def _leaving(self, which, eta, cos):
+    def exit_weight(self, which, eta, cos):
         """Per lane, the weight of ``M`` towards the viewer at ``cos`` on the object ``which`` of index ``eta``:
         ``(1/pi) F_t(eta, cos)`` (paper Eq. 7) times the object's exit gain (Eq. O4, :class:`Leaving`) if it has one."""
         cos = dr.abs(cos)
@@ -221,7 +210,7 @@ class PathTracer:
             result = dr.select(translucent, self._phong(si, ray_d, eta, ds, light), result)
         return dr.select(alive, result, 0.0)
 
-    def _single(self, si, which, eta, u_distance, u_emitter, active):
+    def single_scattering(self, si, which, eta, u_distance, u_emitter, active):
         """Light scattered once inside the translucent object ``which`` towards the viewer at ``si``, by Eq. S2: one
         distance sample along the refracted view ray, one emitter sample per emitter from there."""
         n_lanes = dr.width(si.p)
@@ -320,33 +309,26 @@ class PathTracer:
         recording than there is room for, the paths are traced again from a copy of the sampler taken before (the
         same paths) with room for all of them.
         """
-        room = max(1, int(RECORD_ROOM * dr.width(ray.o)))
+        hits = HitRecords(dr.width(ray.o))
         while True:
             replay = sampler.clone()
-            total, valid, records, count = self._paths(sampler, ray, first_depth, room)
-            if count <= room:
+            total, valid = self._paths(sampler, ray, first_depth, hits)
+            if hits.count <= hits.room:
                 break
-            sampler, room = replay, count
-        first = self.lookups.add_recorded(total, records, count, incident)
+            sampler, hits = replay, HitRecords(0, hits.count)
+        first = self.lookups.add_recorded(total, hits.records, hits.count, incident)
         if first_depth == 0:
             self.lookups.first_recorded = (ray, *first)
         dr.eval(total, valid)
         return total, valid
 
     @dr.syntax
-    def _paths(self, sampler, ray, first_depth, room):
-        """The path tracer's loop: ``(radiance, first hit's mask, records, count)``, ``records`` the (object, point,
-        normal, weight ``beta (1/pi) F_t``, lane, whether it is a camera ray's first hit) of the first ``room`` of the
-        ``count`` hits on translucent objects whose ``M`` is not in the screen table (paper Eq. 7 without ``M``), and
-        the face each is on."""
+    def _paths(self, sampler, ray, first_depth, hits):
+        """The path tracer's loop: ``(radiance, first hit's mask)``, the hits on translucent objects whose ``M`` is not
+        in the screen table recorded in ``hits`` (:class:`~.lookups.HitRecords`)."""
         scene, params = self.scene, self.params
         n_lanes = dr.width(ray.o)
         max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
-        count = dr.zeros(mi.UInt32, 1)
-        # Uninitialized: only the first ``count`` are written and read, so the rest is never touched (zeroing room
-        # for every lane would write all of it on every render, for nothing).
-        records = tuple(dr.empty(t, room) for t in (mi.Int32, mi.Point3f, mi.Vector3f, mi.Color3f, mi.UInt32,
-                                                     mi.Bool, mi.UInt32))
         lane = dr.arange(mi.UInt32, n_lanes)
         ray = mi.Ray3f(ray)
         total = dr.zeros(mi.Color3f, n_lanes)
@@ -374,11 +356,10 @@ class PathTracer:
             leaving = alive & interior & (which == inside)  # the far side, seen from inside: no M, no light sampled
             alive &= ~interior
             translucent = alive & (which >= 0)
-            weight = throughput * self._leaving(which, eta, si.wi.z)  # times M: paper Eq. 7 (or O4)
+            weight = throughput * self.exit_weight(which, eta, si.wi.z)  # times M: paper Eq. 7 (or O4)
             known, sss = self.lookups.on_screen(si, which, translucent, weight)
             contribution += sss
-            _record(records, count, room, translucent & ~known,
-                    (which, si.p, mi.Vector3f(si.n), weight, lane, depth == 0, si.prim_index))
+            hits.add(translucent & ~known, (which, si.p, mi.Vector3f(si.n), weight, lane, depth == 0, si.prim_index))
 
             bsdf = si.bsdf(ray)
             sampled = alive | leaving
@@ -388,7 +369,7 @@ class PathTracer:
             opaque = alive & (which < 0)
             contribution += throughput * self._direct_light(si, bsdf, ray.d, eta, u_light, translucent, opaque, alive)
             if self.single:  # the distance's sample, then the emitters'
-                contribution += throughput * self._single(si, which, eta, sampler.next_1d(translucent),
+                contribution += throughput * self.single_scattering(si, which, eta, sampler.next_1d(translucent),
                                                           sampler.next_2d(translucent), translucent)
 
             bs, bsdf_weight, continues, entering, exiting = self._bounce(si, bsdf, which, eta, u_lobe, u_dir, u_through,
@@ -408,8 +389,8 @@ class PathTracer:
             inside = dr.select(entering, which, dr.select(exiting, -1, inside))
             active = continues
             depth += 1
-        dr.eval(total, valid, count)
-        return total, valid, records, int(count.numpy()[0])
+        dr.eval(total, valid, hits.recorded)
+        return total, valid
 
     def _bounce(self, si, bsdf, which, eta, u_lobe, u_dir, u_through, opaque, translucent, leaving):
         """The next direction: ``(sample, weight, continues, entering, exiting)``.

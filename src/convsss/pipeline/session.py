@@ -259,6 +259,7 @@ class RenderSession:
             screen = ScreenExitance(sensor, shown, shown_at, transports, p.unit_mm)
         self._attach(tracer, transports, screen, diffusion)
         self.stats = {"parameters": asked, "walk_depth": str(mode), "seconds": dict(timer),
+                      "transported": [obj.name for obj in shown if mode.walks and mode.transports(obj)],
                       "objects": per_object, "hidden": list(plan.hidden),
                       "samples": int(sum(o["samples"] for o in per_object)), "translucent_passes": passes,
                       "screen_exitance": {"usable": screen.usable, "queries": screen.queries}}

@@ -66,12 +66,14 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   the radiance still to come into Mitsuba's AD (Eq. G3).
 """
 
+import weakref
 from dataclasses import dataclass
 
 import drjit as dr
 
 from ..backend import import_mitsuba
 from .derivatives import accumulate, add_length, add_scattering, replay_bsdf, replay_scattering, zero_scores
+from .lookups import HitRecords
 from .manifold import refract_toward
 from .shadow import classify
 from .spectral_mis import ended, mis, ones, update, where
@@ -154,8 +156,17 @@ class RandomWalk(ShadowRays):
     surface path tracer (:class:`~.path_tracer.PathTracer`) that the integrator picks where ``walk_depth`` > 0;
     :meth:`trace` gives their radiance."""
 
-    def __init__(self, scene, objects, params, mode, each_emitter=True):
+    def __init__(self, scene, objects, params, mode, each_emitter=True, tracer=None):
         self.scene, self.objects = scene, objects
+        #: Per object, whether its transport renders it (``mode``'s :attr:`~.params.RenderMode.transported`; [] where
+        #: none is): a path that meets one reads its light from ``tracer``, the surface path tracer that owns this
+        #: walk (its exitance and single scattering, paper Eq. 7 and S2), and takes its boundary's reflection alone;
+        #: it never walks inside. A weak reference: a cycle through Mitsuba's objects would be freed by the garbage
+        #: collector at any time, inside a later kernel's recording too (it aborted the process).
+        self.transported = [mode.transports(obj) for obj in objects] if mode.transported else []
+        self.tracer = weakref.proxy(tracer) if tracer is not None and mode.transported else None
+        #: The hits on transported objects that the kernel being traced records (:class:`~.lookups.HitRecords`).
+        self.hits = None
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
         self.rr_depth = params.rr_depth
         #: Every emitter's light but the environment's reaches a vertex through a smooth boundary (Eq. W5, or W4)
@@ -232,15 +243,35 @@ class RandomWalk(ShadowRays):
         """Radiance (mi.Color3f) and first-hit mask (mi.Bool) of rays ``ray`` (camera rays, or rays from points in
         ``medium``, a Mitsuba medium they start in), drawing from ``sampler``: one symbolic loop, each pass an event
         of every path (a free flight in a medium, or a surface), in the steps below."""
-        path = self._walk(sampler, ray, medium)
+        path = self._traced(sampler, ray, medium)
         return path.result, path.valid
 
     def trace_derivatives(self, sampler, ray, medium=None):
         """:meth:`trace`'s radiance and mask, and the radiance's derivatives with respect to each of
         :attr:`differentiated`'s ``sigma_t`` and ``sigma_s`` per channel (a tuple of Color3f, two per medium: Eq. G2 of
         :mod:`.derivatives`)."""
-        path = self._walk(sampler, ray, medium)
+        path = self._traced(sampler, ray, medium)
         return path.result, path.valid, path.jacobian
+
+    def _traced(self, sampler, ray, medium):
+        """:meth:`_walk`'s paths, counted; where some objects are transported (:attr:`transported`), their exitance at
+        the hits the loop recorded added afterwards (:meth:`~.lookups.ExitanceLookups.add_recorded`), the paths
+        traced again from a copy of the sampler should more hits need recording than there was room for."""
+        if not any(self.transported):
+            return self._count(self._walk(sampler, ray, medium))
+        self.hits = HitRecords(dr.width(ray.o))
+        while True:
+            replay = sampler.clone()
+            path = self._walk(sampler, ray, medium)
+            if self.hits.count <= self.hits.room:
+                break
+            sampler, self.hits = replay, HitRecords(0, self.hits.count)
+        lookups = self.tracer.lookups
+        first = lookups.add_recorded(path.result, self.hits.records, self.hits.count)
+        self.hits = None  # room for every lane: not kept between kernels
+        if medium is None:
+            lookups.first_recorded = (ray, *first)
+        return self._count(path)
 
     @dr.syntax
     def _walk(self, sampler, ray, medium):
@@ -253,6 +284,10 @@ class RandomWalk(ShadowRays):
             path = self._surface(path, in_medium, escaped, sampler)
         dr.eval(path.result, path.valid, path.scatterings, path.refracted, path.unsolved, path.ended, path.events,
                 path.leaked, path.jacobian)
+        return path
+
+    def _count(self, path):
+        """Adds ``path``'s walks to :attr:`counts`."""
         self.counts["paths"] += dr.width(path.active)
         self.counts["events"] += int(dr.sum(mi.UInt64(path.scatterings))[0])
         self.counts["refracted"] += int(dr.sum(mi.UInt64(path.refracted))[0])
@@ -412,14 +447,13 @@ class RandomWalk(ShadowRays):
         path.result[seen] += found
         path.jacobian = accumulate(path.jacobian, path.scores, found, seen)  # Eq. G2
         active_surface &= si.is_valid()
+        path, held = self._transported(path, si, first, active_surface, sampler)
 
-        ctx = mi.BSDFContext()
         bsdf = si.bsdf(ray)
         lit = active_surface & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth) & (path.depth + 1 < self.max_depth)
-        path = self._next_events(path, si, sampler, lit, lambda d: bsdf.eval_pdf(ctx, si, si.to_local(d), lit),
-                                 (bsdf, si))
-        bs, bsdf_weight = bsdf.sample(ctx, si, sampler.next_1d(active_surface), sampler.next_2d(active_surface),
-                                      active_surface)
+        path = self._next_events(path, si, sampler, lit, lambda d: self._bsdf(bsdf, si, lit, held, d), (bsdf, si))
+        bs, bsdf_weight = self._bsdf(bsdf, si, active_surface, held, sample=(sampler.next_1d(active_surface),
+                                                                             sampler.next_2d(active_surface)))
         active_surface &= bs.pdf > 0.0
         if self.replayed is not None:  # Eq. G3: the light still to come through the sampled direction
             replay_bsdf(self.replayed, bsdf, si, si.to_world(bs.wo), self.replayed.radiance - path.result,
@@ -449,6 +483,43 @@ class RandomWalk(ShadowRays):
         path.offset[into], ray.o[into] = ray.o - si.p, si.p
         path.active &= active_surface | in_medium
         return path
+
+    def _transported(self, path, si, first, active, sampler):
+        """``(path, held)``: the ``active`` lanes at an object its transport renders (:attr:`transported`), its light
+        found there as an emitter's would be (weight ``mis(ratios)``): the exitance ``(1/pi) F_t M`` (paper Eq. 7,
+        recorded in :attr:`hits` for the lookup after the loop) and the single scattering (Eq. S2), within
+        ``max_depth`` as a walk's first scattering would be."""
+        held = dr.full(mi.Bool, False, dr.width(active))
+        if not any(self.transported):
+            return path, held
+        which, eta = self.classify(si)
+        for k, transported in enumerate(self.transported):
+            if transported:
+                held |= active & (which == k)
+        lit = held & (path.depth + 1 < self.max_depth)
+        weight = mis(path.ratios) * self.tracer.exit_weight(which, eta, si.wi.z)
+        self.hits.add(lit, (which, si.p, mi.Vector3f(si.n), weight, dr.arange(mi.UInt32, dr.width(active)), first,
+                            si.prim_index))
+        if self.tracer.single:
+            path.result[lit] += mis(path.ratios) * self.tracer.single_scattering(
+                si, which, eta, sampler.next_1d(lit), sampler.next_2d(lit), lit)
+        return path, held
+
+    def _bsdf(self, bsdf, si, active, held, direction=None, sample=None):
+        """The boundary's BSDF towards ``direction`` (``(value, pdf)``) or, with ``sample`` (``(u_lobe, u_dir)``), its
+        sample and weight: the whole BSDF, and on the lanes ``held`` (a transported object, whose light under the
+        surface is its exitance) its reflection lobe alone."""
+        def one(ctx, mask):
+            if sample is None:
+                return bsdf.eval_pdf(ctx, si, si.to_local(direction), mask)
+            return bsdf.sample(ctx, si, *sample, mask)
+
+        out = one(mi.BSDFContext(), active & ~held if any(self.transported) else active)
+        if any(self.transported):
+            reflection = mi.BSDFContext()
+            reflection.type_mask = int(mi.BSDFFlags.Reflection)
+            out = tuple(dr.select(held, r, o) for r, o in zip(one(reflection, active & held), out))
+        return out
 
     def _evaluated(self, medium, active):
         """Per lane in ``medium`` (where ``active``): whether its paths are weighed by :attr:`evaluated`'s
