@@ -24,12 +24,14 @@ class BenchScene:
     constant environment), ``side`` (the same light beside the object, level with its centre, at right angles to
     the camera: thin parts seen against it), ``sun`` (a rough dielectric, roughness 0.3, under a sun, a directional
     light from the key light's side, and a sky, a constant environment) or ``environment`` (a smooth dielectric
-    under a constant environment alone)."""
+    under a constant environment alone). A ``companion`` ``(material, diameter_mm)`` adds a sphere of that material,
+    with the same boundary, in front of the object on the camera's right: a second object, rendered its own way."""
 
     mesh: str
     material: str
     size_mm: float
     lighting: str = "key+back"
+    companion: tuple = ()
 
 
 #: The lightings whose boundary is a smooth dielectric, and a rough one (the rest: index-matched).
@@ -102,6 +104,14 @@ def scene_dict(scene, resolution=800):
         out["area_light"] = {"type": "rectangle", "to_world": to_world @ transform().scale([side / 2, side / 2, 1]),
                              "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [radiance] * 3}}}
         out["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.05] * 3}}
+    if scene.companion:
+        from ..media.dicts import translucent
+
+        companion, diameter = scene.companion
+        radius = 0.5 * float(diameter)
+        at = [0.35 * size_mm, radius, 0.45 * size_mm + radius]  # clear of the object's box (quick_scene's layout)
+        out["companion"] = translucent({"type": "sphere", "radius": radius, "center": at}, bench_material(companion),
+                                       boundary=boundary)
     return out
 
 

@@ -27,7 +27,8 @@ from .volpath import _image, _run, relative_mse, two_references
 #: The benchmark's scenes: skin lit from behind, thin limbs behind a dielectric under an area light, milk a few
 #: mean free paths across, ketchup (low albedo in green and blue), marble behind a dielectric (diffusion holds); and
 #: the rest of issue 50's: a long-mfp medium behind a rough dielectric under a sun and a sky (skim milk), thin wings
-#: behind glass under a side light (a jade colour on Lucy), potato behind a dielectric under an environment.
+#: behind glass under a side light (a jade colour on Lucy), potato behind a dielectric under an environment; and issue
+#: 60's pair: a large marble object (diffusion holds) beside a small skin one (it fails), each rendered its own way.
 WALK_SCENES = {
     "skin40-back": BenchScene("bunny", "skin1", 40.0, "back"),
     "armadillo30-area": BenchScene("armadillo.obj", "skin1", 30.0, "area"),
@@ -37,6 +38,7 @@ WALK_SCENES = {
     "dragon40-sun": BenchScene("dragon.ply", "skimmilk", 40.0, "sun"),
     "lucy40-side": BenchScene("lucy.obj", ((0.4, 0.6, 0.8), 4.0), 40.0, "side"),
     "potato40-env": BenchScene("bunny", "potato", 40.0, "environment"),
+    "marble40+skin10": BenchScene("bunny", "marble", 40.0, "area", companion=("skin1", 10.0)),
 }
 DEPTHS = (0.0, 2.0, 4.0, 8.0, 16.0, math.inf)
 REFERENCE_SPP = 1024

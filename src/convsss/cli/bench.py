@@ -13,7 +13,7 @@ from .options import PROGRESS
 #: ``bench walk``'s scenes (the keys of :data:`convsss.bench.walk.WALK_SCENES`, named here so that the command line
 #: does not import that module): ``bench walk`` and ``bench cost`` take them.
 WALK_SCENE_NAMES = ("skin40-back", "armadillo30-area", "milk4", "ketchup20", "marble40-area", "dragon40-sun",
-                    "lucy40-side", "potato40-env")
+                    "lucy40-side", "potato40-env", "marble40+skin10")
 
 #: The objects' profile in a benchmark: the integrator's ``profile`` parameter (checked as a render checks it).
 PROFILE = click.option("--profile", default="", metavar="SPEC",
