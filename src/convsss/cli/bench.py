@@ -245,7 +245,8 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, walk_depth, out
                    "ketchup bunny (null boundary, the key and back lights), a 40 mm marble bunny behind a "
                    "dielectric under an area light, a 40 mm skim-milk dragon behind a rough dielectric under a sun "
                    "and a sky, a 40 mm Lucy of a jade colour (0.4, 0.6, 0.8 at 4 mm) behind glass under a side "
-                   "light, and a 40 mm potato bunny behind a dielectric under an environment.")
+                   "light, a 40 mm potato bunny behind a dielectric under an environment, and the marble bunny with a "
+                   "10 mm skin1 sphere before it (auto renders each its own way).")
 @click.option("--width", type=click.IntRange(16, 4096), default=64, show_default=True,
               help="Image width and height (square).")
 @click.option("--spp", type=click.IntRange(1), default=64, show_default=True,
