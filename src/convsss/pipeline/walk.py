@@ -61,6 +61,10 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   survivor's ``1/q`` weighs both of Eq. W2's techniques for the light it finds next; a vertex in an object's medium
   outside every bounding box of that medium's objects ends its path (``leaked``: it left them unseen, a vertex a
   rounding error past the boundary; 0-25 paths in a million on ``bench walk``'s scenes);
+* an object that its transport renders (``auto`` where diffusion holds on it but fails on another:
+  :attr:`~.params.RenderMode.transported`) is never entered: a path that meets it finds its light there as an
+  emitter's, ``(1/pi) F_t M`` (paper Eq. 7, the hit recorded in the loop and its ``M`` looked up after it, as the
+  surface path tracer does) and its single scattering (Eq. S2), and takes its boundary's reflection alone;
 * **derivatives** with respect to the media's coefficients (:mod:`.derivatives`): each path carries its events'
   scores beside its ratios and each sample a Jacobian (Eq. G1, G2), or a replayed walk sends each event's score times
   the radiance still to come into Mitsuba's AD (Eq. G3).
