@@ -389,11 +389,11 @@ def test_mi_traverse_exposes_and_sets_the_numeric_parameters(mi, sphere_scene):
     scene = mi.load_dict(sphere_scene(res=8, spp=1))
     integrator = scene.integrator()
     params = mi.traverse(integrator)
-    assert {"accuracy", "sample_density", "irradiance_samples", "unit_mm"} <= set(params.keys())
+    assert {"accuracy", "sample_density", "indirect_passes", "unit_mm"} <= set(params.keys())
     params["accuracy"] = 0.03
-    params["irradiance_samples"] = 8
+    params["indirect_passes"] = 2
     params.update()
-    assert integrator.params.accuracy == 0.03 and integrator.params.irradiance_samples == 8
+    assert integrator.params.accuracy == 0.03 and integrator.params.indirect_passes == 2
     integrator.render(scene, scene.sensors()[0])
     assert integrator.stats["parameters"]["accuracy"] == 0.03
     params["sample_density"] = -1.0

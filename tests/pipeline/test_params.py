@@ -142,3 +142,13 @@ def test_where_every_object_walks_the_transports_parameters_set_are_named():
     named = walk_ignored(RenderParams(walk_depth="inf", profile="pbd", incidence="normal", accuracy=0.003,
                                       single_scattering="profile", profile_total="model"))
     assert named == ["incidence", "single_scattering", "profile_total", "profile", "accuracy"]
+
+
+def test_irradiance_samples_auto_gives_each_profile_area_its_directions():
+    """auto: 16 directions per profile area where the profile rule draws the samples (1 a point at its default 1500
+    points a profile area, 4 at 4), 16 a point without it (the paper's samples by cells); a number as given."""
+    assert RenderParams().irradiance_samples == "auto" and RenderParams().directions == 1
+    assert RenderParams(profile_samples=4.0).directions == 4
+    assert RenderParams(profile_samples=0.0).directions == 16
+    assert RenderParams(irradiance_samples=8).directions == 8
+    assert RenderParams(irradiance_samples="auto", profile_samples=1.0).directions == 16

@@ -43,7 +43,7 @@ def light_samples(scene, objects, plan, params, seed, tracer, stage=None, stop=N
     stage = stage or (lambda name: nullcontext())
     p = params
     shown = [objects[q.index] for q in plan.objects]
-    direct = [object_samples(scene, objects[q.index], q.samples, p.irradiance_samples, p.unit_mm, seed,
+    direct = [object_samples(scene, objects[q.index], q.samples, p.directions, p.unit_mm, seed,
                              stream=q.index, stage=stage, oblique=p.incidence == "oblique", orders=p.orders,
                              shadows=tracer.shadows)
               for q in plan.objects]

@@ -154,11 +154,11 @@ def view_bounds(obj, frame, unit_mm):
 
 
 def irradiance_rays(scene, count, params):
-    """Rays the irradiance of ``count`` points takes: ``count`` x ``irradiance_samples`` directions x (one ray per
+    """Rays the irradiance of ``count`` points takes: ``count`` x ``directions`` (``RenderParams``) x (one ray per
     area or environment emitter + one cosine-sampled ray), plus ``count`` x ``indirect_samples`` paths of
     ``INDIRECT_BOUNCES`` bounces, each a ray and a shadow ray per emitter."""
     sampled = sum(not mi.has_flag(e.flags(), mi.EmitterFlags.Delta) for e in scene.emitters())
-    direct = count * params.irradiance_samples * (sampled + 1) if sampled else 0
+    direct = count * params.directions * (sampled + 1) if sampled else 0
     return direct + count * params.indirect_samples * INDIRECT_BOUNCES * (1 + len(scene.emitters()))
 
 
@@ -180,9 +180,9 @@ def check_irradiance_time(scene, count, name, params):
     rays = irradiance_rays(scene, count, params)
     if rays / RAYS_PER_SECOND > MAX_IRRADIANCE_SECONDS:
         raise ConvsssError(f"irradiance of {name!r} needs {rays:.3g} rays ({count} points x "
-                           f"{params.irradiance_samples} directions x {sampled + 1} + {count} x "
+                           f"{params.directions} directions x {sampled + 1} + {count} x "
                            f"{params.indirect_samples:g} indirect paths), about {rays / RAYS_PER_SECOND / 60:.0f} min "
-                           f"at {RAYS_PER_SECOND:.0e} rays/s: lower irradiance_samples (16-64 is plenty), "
+                           f"at {RAYS_PER_SECOND:.0e} rays/s: lower irradiance_samples (auto: 1-16), "
                            "indirect_samples or sample_density")
 
 
