@@ -373,10 +373,11 @@ def _forward_model(mi, scene, sensor, object, fit_eta, seed, spp):
     name = _object_to_fit(found, object, fit_eta)
     # The default render's forward model (module doc): walks where it walks to the end, else the transport's.
     chosen = next(o for o in found if o.name == name)
-    mode = render_mode(asked, found)  # where some objects keep their transport (auto), so does the fit
-    walks = mode.walk_depth == math.inf and not mode.transported and chosen.classes is None
-    integrator = mi.load_dict({"type": "convsss", **params, **({"rr_depth": NO_ROULETTE} if walks else
-                                                               {"walk_depth": 0.0})})
+    mode = render_mode(asked, found)
+    walks = mode.walk_depth == math.inf and not mode.transports(chosen) and chosen.classes is None
+    # Where auto keeps the transport on other objects, their exitance has no derivatives: the fit walks every object.
+    walked = {"rr_depth": NO_ROULETTE, **({"walk_depth": "inf"} if mode.transported else {})}
+    integrator = mi.load_dict({"type": "convsss", **params, **(walked if walks else {"walk_depth": 0.0})})
     spp = spp or (WALK_SPP if walks else TRANSPORT_SPP)
     forward = Forward(scene, integrator, sensor, 0, seed, spp, walks)
     integrator.prepare(scene, sensor, seed)

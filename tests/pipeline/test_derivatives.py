@@ -135,6 +135,22 @@ def test_a_render_that_keeps_the_transport_on_some_object_refuses_gradients(mi, 
     assert str(error) == NOT_WALKED
 
 
+def test_a_fit_beside_an_object_auto_keeps_by_its_transport_walks_every_object(mi, object_pair):
+    """auto renders the marble sphere by its transport and walks the skin one (issue 60): a fit of the skin walks,
+    every object to its end (the transport's exitance has no derivatives), and a fit of the marble uses the
+    transport, as the default render does."""
+    import math
+
+    from convsss.fitting import _forward_model
+
+    scene, _ = object_pair
+    skin = _forward_model(mi, scene, 0, "skin", False, 0, 4)
+    assert skin.walks and skin.integrator.params.walk_depth == math.inf
+    assert not skin.integrator.session.mode.transported
+    marble = _forward_model(mi, scene, 0, "object", False, 0, 4)
+    assert not marble.walks and marble.integrator.params.walk_depth == 0.0
+
+
 @pytest.mark.parametrize("key", ["light.intensity.value", "sphere.bsdf.eta"])
 def test_a_parameter_other_than_the_medium_and_the_roughness_is_refused_by_name(mi, key):
     """A light's, the boundary's index (it bends the paths: not a weight) or any other parameter with gradients on
