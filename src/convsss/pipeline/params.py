@@ -20,7 +20,7 @@ SPECULARS = ("bsdf", "phong", "none")
 #: under its profile: its sample noise (median, p95 over the object's pixels, 128^2, exitance AOV of two seeds) from
 #: 16 directions a point to 1, at the default 1500 points a profile area: 0.51/3.58 -> 0.55/3.60 % on the 40 mm marble
 #: bunny under an area light, 0.60/3.70 -> 0.65/3.72 % on the armadillo, 0.39/1.20 -> 0.46/1.74 % on the potato under
-#: an environment, 0.24/0.94 -> 0.29/1.12 % on the dragon under a sun and a sky; the irradiance stage 10-18x faster.
+#: an environment, 0.24/0.94 -> 0.29/1.12 % on the dragon under a sun and a sky; the irradiance stage 9.8-18x faster.
 PROFILE_DIRECTIONS = 16
 #: Default ``profile_samples``: chosen to hold the exitance's sample noise near the goal of 1 % (docs/benchmarks.md
 #: has the measurements).
