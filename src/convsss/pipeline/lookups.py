@@ -50,6 +50,19 @@ class HitRecords:
         """Hits recorded, kept or not (after the kernel ran)."""
         return int(self.recorded.numpy()[0])
 
+    @staticmethod
+    def traced(trace, sampler, lanes):
+        """``(trace(sampler, hits), hits)``: a kernel of ``lanes`` paths recording its hits in ``hits``, traced again
+        from a copy of ``sampler`` (the same paths) with room for all of them where more were recorded than there was
+        room for."""
+        hits = HitRecords(lanes)
+        while True:
+            replay = sampler.clone()
+            out = trace(sampler, hits)
+            if hits.count <= hits.room:
+                return out, hits
+            sampler, hits = replay, HitRecords(0, hits.count)
+
 
 class ExitanceLookups:
     """The exitance the path tracer of ``objects`` reads (module doc); ``unit_mm`` mm per scene unit, ``stop()``

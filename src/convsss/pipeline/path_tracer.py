@@ -309,13 +309,8 @@ class PathTracer:
         recording than there is room for, the paths are traced again from a copy of the sampler taken before (the
         same paths) with room for all of them.
         """
-        hits = HitRecords(dr.width(ray.o))
-        while True:
-            replay = sampler.clone()
-            total, valid = self._paths(sampler, ray, first_depth, hits)
-            if hits.count <= hits.room:
-                break
-            sampler, hits = replay, HitRecords(0, hits.count)
+        (total, valid), hits = HitRecords.traced(lambda s, h: self._paths(s, ray, first_depth, h), sampler,
+                                                 dr.width(ray.o))
         first = self.lookups.add_recorded(total, hits.records, hits.count, incident)
         if first_depth == 0:
             self.lookups.first_recorded = (ray, *first)

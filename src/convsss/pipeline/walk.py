@@ -163,12 +163,13 @@ class RandomWalk(ShadowRays):
     def __init__(self, scene, objects, params, mode, each_emitter=True, tracer=None):
         self.scene, self.objects = scene, objects
         #: Per object, whether its transport renders it (``mode``'s :attr:`~.params.RenderMode.transported`; [] where
-        #: none is): a path that meets one reads its light from ``tracer``, the surface path tracer that owns this
-        #: walk (its exitance and single scattering, paper Eq. 7 and S2), and takes its boundary's reflection alone;
-        #: it never walks inside. A weak reference: a cycle through Mitsuba's objects would be freed by the garbage
+        #: none of ``objects`` is): a path that meets one reads its light from ``tracer``, the surface path tracer
+        #: that owns this walk (its exitance and single scattering, paper Eq. 7 and S2), and takes its boundary's
+        #: reflection alone (the tracer's contexts); it never walks inside. A weak reference: a cycle through Mitsuba's objects would be freed by the garbage
         #: collector at any time, inside a later kernel's recording too (it aborted the process).
-        self.transported = [mode.transports(obj) for obj in objects] if mode.transported else []
-        self.tracer = weakref.proxy(tracer) if tracer is not None and mode.transported else None
+        transported = [bool(mode.transported) and mode.transports(obj) for obj in objects]
+        self.transported = transported if any(transported) else []
+        self.tracer = weakref.proxy(tracer) if self.transported else None
         #: The hits on transported objects that the kernel being traced records (:class:`~.lookups.HitRecords`).
         self.hits = None
         self.max_depth = params.max_depth if params.max_depth > 0 else 2**31 - 1
@@ -261,18 +262,17 @@ class RandomWalk(ShadowRays):
         """:meth:`_walk`'s paths, counted; where some objects are transported (:attr:`transported`), their exitance at
         the hits the loop recorded added afterwards (:meth:`~.lookups.ExitanceLookups.add_recorded`), the paths
         traced again from a copy of the sampler should more hits need recording than there was room for."""
-        if not any(self.transported):
+        if not self.transported:
             return self._count(self._walk(sampler, ray, medium))
-        self.hits = HitRecords(dr.width(ray.o))
-        while True:
-            replay = sampler.clone()
-            path = self._walk(sampler, ray, medium)
-            if self.hits.count <= self.hits.room:
-                break
-            sampler, self.hits = replay, HitRecords(0, self.hits.count)
-        lookups = self.tracer.lookups
-        first = lookups.add_recorded(path.result, self.hits.records, self.hits.count)
+
+        def recording(sampler, hits):
+            self.hits = hits
+            return self._walk(sampler, ray, medium)
+
+        path, hits = HitRecords.traced(recording, sampler, dr.width(ray.o))
         self.hits = None  # room for every lane: not kept between kernels
+        lookups = self.tracer.lookups
+        first = lookups.add_recorded(path.result, hits.records, hits.count)
         if medium is None:
             lookups.first_recorded = (ray, *first)
         return self._count(path)
@@ -494,7 +494,7 @@ class RandomWalk(ShadowRays):
         recorded in :attr:`hits` for the lookup after the loop) and the single scattering (Eq. S2), within
         ``max_depth`` as a walk's first scattering would be."""
         held = dr.full(mi.Bool, False, dr.width(active))
-        if not any(self.transported):
+        if not self.transported:
             return path, held
         which, eta = self.classify(si)
         for k, transported in enumerate(self.transported):
@@ -518,12 +518,10 @@ class RandomWalk(ShadowRays):
                 return bsdf.eval_pdf(ctx, si, si.to_local(direction), mask)
             return bsdf.sample(ctx, si, *sample, mask)
 
-        out = one(mi.BSDFContext(), active & ~held if any(self.transported) else active)
-        if any(self.transported):
-            reflection = mi.BSDFContext()
-            reflection.type_mask = int(mi.BSDFFlags.Reflection)
-            out = tuple(dr.select(held, r, o) for r, o in zip(one(reflection, active & held), out))
-        return out
+        if not self.transported:
+            return one(mi.BSDFContext(), active)
+        out, reflected = one(self.tracer.ctx, active & ~held), one(self.tracer.ctx_reflect, active & held)
+        return tuple(dr.select(held, r, o) for r, o in zip(reflected, out))
 
     def _evaluated(self, medium, active):
         """Per lane in ``medium`` (where ``active``): whether its paths are weighed by :attr:`evaluated`'s
