@@ -165,8 +165,9 @@ class RandomWalk(ShadowRays):
         #: Per object, whether its transport renders it (``mode``'s :attr:`~.params.RenderMode.transported`; [] where
         #: none of ``objects`` is): a path that meets one reads its light from ``tracer``, the surface path tracer
         #: that owns this walk (its exitance and single scattering, paper Eq. 7 and S2), and takes its boundary's
-        #: reflection alone (the tracer's contexts); it never walks inside. A weak reference: a cycle through Mitsuba's objects would be freed by the garbage
-        #: collector at any time, inside a later kernel's recording too (it aborted the process).
+        #: reflection alone (the tracer's contexts); it never walks inside. A weak reference: a cycle through
+        #: Mitsuba's objects would be freed by the garbage collector at any time, inside a later kernel's recording
+        #: too (it aborted the process).
         transported = [bool(mode.transported) and mode.transports(obj) for obj in objects]
         self.transported = transported if any(transported) else []
         self.tracer = weakref.proxy(tracer) if self.transported else None
