@@ -77,7 +77,6 @@ import drjit as dr
 
 from ..backend import import_mitsuba
 from .derivatives import accumulate, add_length, add_scattering, replay_bsdf, replay_scattering, zero_scores
-from .guiding import GUIDED_PROBABILITY, axes, correction, dwivedi_nu, guiding_lights, sample_direction
 from .lookups import HitRecords
 from .manifold import refract_toward
 from .shadow import classify
@@ -133,15 +132,11 @@ class _Path:
     active: object
     scores: tuple  # per differentiated medium, d log f / d sigma_t and d sigma_s so far (Eq. G1)
     jacobian: tuple  # and the radiance's derivatives (Eq. G2)
-    mixing: object  # the flight under way is of a vertex that mixed the guided pair in (:mod:`.guiding`)
-    stretch: object  # its flight's length over the classic one's: 1 / (1 - mu / nu0) where it drew the guided pair
-    mus: tuple  # the cosines of its direction to the vertex's axes (one per guiding light)
-    phase_pdf: object  # and the phase function's density of that direction
 
     @staticmethod
-    def start(sampler, ray, medium, differentiated=(), guides=0):
+    def start(sampler, ray, medium, differentiated=()):
         """Walks along ``ray`` from ``medium`` (None: from outside every medium), the hero channel drawn; with the
-        ``differentiated`` media's scores (:mod:`.derivatives`) and ``guides`` axes (:mod:`.guiding`)."""
+        ``differentiated`` media's scores (:mod:`.derivatives`)."""
         n = dr.width(ray)
         start = dr.zeros(mi.MediumPtr, n) if medium is None else dr.full(mi.MediumPtr, medium, n)
         return _Path(ray=mi.Ray3f(ray), medium=mi.MediumPtr(start), offset=dr.zeros(mi.Vector3f, n),
@@ -157,9 +152,7 @@ class _Path:
                      scatterings=dr.zeros(mi.UInt32, n), refracted=dr.zeros(mi.UInt32, n),
                      unsolved=dr.zeros(mi.UInt32, n), ended=dr.full(mi.Bool, False, n),
                      leaked=dr.full(mi.Bool, False, n), active=dr.full(mi.Bool, True, n),
-                     scores=zero_scores(differentiated, n), jacobian=zero_scores(differentiated, n),
-                     mixing=dr.full(mi.Bool, False, n), stretch=dr.full(mi.Float, 1.0, n),
-                     mus=tuple(dr.zeros(mi.Float, n) for _ in range(guides)), phase_pdf=dr.full(mi.Float, 1.0, n))
+                     scores=zero_scores(differentiated, n), jacobian=zero_scores(differentiated, n))
 
 
 class RandomWalk(ShadowRays):
@@ -194,14 +187,6 @@ class RandomWalk(ShadowRays):
         #: The emitters each vertex samples one by one (``each_emitter``: a shadow ray each, and a shadow-ray loop
         #: each in the walk's kernel), or ``[None]``: one the scene chooses, as ``volpathmis`` does (``mode.plain``).
         self.lights = list(scene.emitters()) if each_emitter and not mode.plain and scene.emitters() else [None]
-        #: Guided flights (:mod:`.guiding`) where shadow rays take the transmittance whole (their first segment's
-        #: length is Eq. G4's): the probability of the guided pair, the lights whose ways guide it, and ``nu0`` (Eq.
-        #: G1) per channel of each homogeneous translucent medium; none in ``volpathmis``'s estimator.
-        self.guide_lights = guiding_lights(scene) if self.analytic and GUIDED_PROBABILITY > 0.0 else []
-        self.guiding = GUIDED_PROBABILITY if self.guide_lights else 0.0
-        self.nu = [(mi.MediumPtr(obj.shape.interior_medium()),
-                    mi.Color3f(*[float(x) for x in dwivedi_nu(obj.material.albedo_prime)]))
-                   for obj in objects if obj.classes is None and obj.shape.interior_medium() is not None]
         #: ``(medium, lo, hi)`` per object: its interior and its world bounding box (scene units), grown by 1e-3.
         self.boxes = []
         for obj in objects:
@@ -295,7 +280,7 @@ class RandomWalk(ShadowRays):
 
     @dr.syntax
     def _walk(self, sampler, ray, medium):
-        path = _Path.start(sampler, ray, medium, self.differentiated, len(self.guide_lights))
+        path = _Path.start(sampler, ray, medium, self.differentiated)
         while path.active:
             path = self._roulette(path, sampler)
             path, mei, in_medium, escaped, scatter = self._flight(path, sampler)
@@ -340,11 +325,6 @@ class RandomWalk(ShadowRays):
         ray, medium, si = path.ray, path.medium, path.si
         active_medium = path.active & (medium != None)  # noqa: E711 (a Dr.Jit pointer array)
         mei = medium.sample_interaction(ray, sampler.next_1d(active_medium), path.channel, active_medium)
-        mixing = path.mixing & active_medium
-        if self.guiding:  # Eq. G3: the guided flight, sigma_t (1 - mu / nu0) in the hero channel (stretch 1: classic)
-            stretched = mixing & mei.is_valid()
-            mei.t[stretched] = mei.t * path.stretch
-            mei.p[stretched] = ray(mei.t)
         ray.maxt[active_medium & medium.is_homogeneous() & mei.is_valid()] = mei.t
         intersect = path.needs_intersection & active_medium
         # From a surface, the flight starts on it; the surfaces are found from Mitsuba's offset origin, which lies
@@ -364,11 +344,6 @@ class RandomWalk(ShadowRays):
         transmittance, flight_pdf = medium.transmittance_eval_pdf(mei, si, spectral)
         transmittance[trial] = dr.exp(-trial_t * (dr.minimum(mei.t, si.t) - mei.mint))
         path.ratios = update(path.ratios, flight_pdf, transmittance, spectral)
-        if self.guiding:  # the pair's density: the mixture's, Eq. G4, times the classic pair's
-            path.ratios = update(path.ratios, correction(self._nu(medium, mixing), mei.combined_extinction, path.mus,
-                                                         path.phase_pdf, dr.minimum(mei.t, si.t) - mei.mint,
-                                                         mei.is_valid(), self.guiding), 1.0, mixing)
-            path.mixing &= ~active_medium
         escaped = active_medium & ~mei.is_valid()
         whole = escaped & medium.is_homogeneous() & self.analytic  # light sampling's density: the shadow's odds
         drawn = dr.exp(-mei.combined_extinction * (si.t - mei.mint))  # the odds by the drawn medium, not a trial's
@@ -430,53 +405,17 @@ class RandomWalk(ShadowRays):
         if self.replayed is not None:
             replay_scattering(self.replayed, path.medium, mei, path.result, scatter)  # Eq. G3
         lit = scatter & (path.depth < self.max_depth)  # the vertex's light ends a path of depth + 1 segments
-        it = _interaction(mei)
-        nu, guides, mixing = self._guides(path.medium, it, scatter)
-
-        def guided(d, pdf, first):  # Eq. G4 of the path that would have flown from here to the light
-            return correction(nu, mei.combined_extinction, [dr.dot(d, axis) for axis in guides], pdf, first, False,
-                              self.guiding)
-
-        path = self._next_events(path, it, sampler, lit, lambda d: phase.eval_pdf(phase_ctx, mei, d, lit),
-                                 guided=(guided, mixing) if guides else None)
+        path = self._next_events(path, _interaction(mei), sampler, lit,
+                                 lambda d: phase.eval_pdf(phase_ctx, mei, d, lit))
         path.ratios_nee = where(scatter, path.ratios, path.ratios_nee)
         wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
                                                    sampler.next_2d(scatter), scatter)
-        value = phase_weight * phase_pdf
-        if guides:  # the guided pair (Eq. G2 here, G3 in the flight) with odds P, about one axis drawn uniformly
-            drawn = mixing & (sampler.next_1d(mixing) < self.guiding)
-            k = dr.minimum(mi.UInt32(sampler.next_1d(drawn) * len(guides)), len(guides) - 1)
-            axis = guides[0]
-            for j in range(1, len(guides)):
-                axis = dr.select(k == j, guides[j], axis)
-            hero = dr.select(path.channel == 0, nu[0], dr.select(path.channel == 1, nu[1], nu[2]))
-            wo[drawn] = sample_direction(axis, hero, sampler.next_2d(drawn))
-            value[drawn], phase_pdf[drawn] = phase.eval_pdf(phase_ctx, mei, wo, drawn)
-            path.stretch[scatter] = dr.select(drawn, 1.0 / (1.0 - dr.dot(wo, axis) / hero), 1.0)
-            path.mus = tuple(dr.select(scatter, dr.dot(wo, axis), mu) for axis, mu in zip(guides, path.mus))
-            path.phase_pdf[scatter] = phase_pdf
-            path.mixing[scatter] = mixing
         path.ray[scatter] = mei.spawn_ray(wo)
         path.scattered[scatter] = wo
         path.needs_intersection |= scatter
-        path.ratios = update(path.ratios, phase_pdf, value, scatter)
-        path.ratios_nee = update(path.ratios_nee, 1.0, value, scatter)
+        path.ratios = update(path.ratios, phase_pdf, phase_weight * phase_pdf, scatter)
+        path.ratios_nee = update(path.ratios_nee, 1.0, phase_weight * phase_pdf, scatter)
         return path
-
-    def _guides(self, medium, it, active):
-        """At scattering vertices ``it`` in ``medium`` (where ``active``): ``nu0`` per channel (Eq. G1; 0 where the
-        medium is not guided), the axes towards the guiding lights, and the lanes that mix the guided pair in."""
-        if not self.guiding:
-            return None, [], active & False
-        nu = self._nu(medium, active)
-        return nu, axes(self.guide_lights, it, active), active & (nu[0] > 0.0)
-
-    def _nu(self, medium, active):
-        """Per lane in ``medium`` (where ``active``): ``nu0`` per channel (Eq. G1; 0 where the medium is not guided)."""
-        nu = dr.zeros(mi.Color3f, dr.width(active))
-        for guided, value in self.nu:
-            nu[active & (medium == guided)] = value
-        return nu
 
     def _surface(self, path, in_medium, escaped, sampler):
         """At a surface (the lanes not in a medium, and those that flew out of one): the emission seen, weighed
@@ -596,24 +535,19 @@ class RandomWalk(ShadowRays):
             sigma_t[here], sigma_s[here] = weighed_t, weighed_s
         return trial, sigma_t, sigma_s
 
-    def _next_events(self, path, origin, sampler, active, evaluate, surface=None, guided=None):
+    def _next_events(self, path, origin, sampler, active, evaluate, surface=None):
         """``path`` with, where ``active``, the light of each of :attr:`lights` sampled from ``origin`` (a scattering
         vertex or a surface in the path's medium) and weighed against the path's own sampling there by the balance
         heuristic (Eq. W2) added to its radiance; ``evaluate(direction)`` is that sampling's ``(value, pdf)``: the
-        phase function's or the BSDF's (``surface``: ``(bsdf, si)``, for a replayed walk's Eq. G3); ``guided``:
-        ``(factor, lanes)``, where the vertex mixes the guided pair in (the lanes), ``factor(direction, pdf,
-        length)`` is Eq. G4's for a path that flew ``length`` in its medium that way."""
+        phase function's or the BSDF's (``surface``: ``(bsdf, si)``, for a replayed walk's Eq. G3)."""
         for light in self.lights:
-            end_nee, end_uni, emitted, ds, crossed, scores, refraction, first = self._emitter(
+            end_nee, end_uni, emitted, ds, crossed, scores, refraction = self._emitter(
                 origin, path.medium, path.ratios, path.channel, sampler, active, light)
             path.refracted[refraction.found] += 1
             path.unsolved[refraction.tried & ~refraction.found] += 1
             value, pdf = evaluate(ds.d)
             end_nee = update(end_nee, 1.0, value, active)
             end_uni = update(end_uni, dr.select(ds.delta | crossed, 0.0, pdf), value, active)
-            if guided is not None:
-                factor, lanes = guided
-                end_uni = update(end_uni, factor(ds.d, pdf, first), 1.0, active & lanes & (first >= 0.0))
             found = mis(end_nee, end_uni) * emitted  # Eq. W2
             path.result[active] += found
             path.jacobian = accumulate(path.jacobian, path.scores, found, active, scores)  # Eq. G2

@@ -48,7 +48,6 @@ class _Shadow:
     bent: object  # it leaves the object where Eq. W5 refracts it toward the light (manifold NEE)
     out: object  # the refracted direction there
     straight: object  # straight through a smooth boundary by Eq. W4: a surface's, or with refraction straight
-    first: object  # the length of its first segment in a medium (-1 until it has one: guiding's Eq. G4)
 
 
 class ShadowRays:
@@ -85,14 +84,13 @@ class ShadowRays:
                          with_uni=ratios, active=active, scores=zero_scores(self.differentiated, n),
                          bent=refraction.found, out=refraction.out,
                          straight=dr.full(mi.Bool, isinstance(origin, mi.SurfaceInteraction3f)
-                                          or not self.refracting, n),
-                         first=dr.full(mi.Float, -1.0, n))
+                                          or not self.refracting, n))
         while shadow.active:
             remaining = shadow.max_dist - shadow.total
             shadow, mei, in_medium, escaped, trial, trial_t = self._shadow_flight(shadow, sampler, channel, ds,
                                                                                   remaining)
             shadow = self._shadow_surface(shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining)
-        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed, shadow.scores, refraction, shadow.first
+        return shadow.with_nee, shadow.with_uni, emitted, ds, shadow.crossed, shadow.scores, refraction
 
     def _refracted(self, origin, ds, ray, emitted, active):
         """``(ds, ray, emitted, refraction, si, intersect)``: from a scattering vertex, the light sample, shadow ray
@@ -138,7 +136,6 @@ class ShadowRays:
         spectral = active_medium & (medium.has_spectral_extinction() | trial)
         grey = active_medium & ~spectral
         t = dr.minimum(remaining, dr.minimum(mei.t, si.t)) - mei.mint
-        shadow.first[active_medium & (shadow.first < 0.0)] = t
         shadow.scores = add_length(shadow.scores, self.differentiated, medium, t, active_medium)  # Eq. G1
         transmittance = dr.exp(-t * mei.combined_extinction)
         flight_pdf = dr.select((si.t < mei.t) | (mei.t > remaining), transmittance,
