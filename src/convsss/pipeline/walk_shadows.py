@@ -18,6 +18,17 @@ from .spectral_mis import mis, update
 
 mi = import_mitsuba()
 
+
+def through_boundary(emitter):
+    """Per lane, whether a smooth boundary takes ``emitter``'s light straight (Eq. W4, W5) where the walk lets it
+    (:attr:`~.walk.RandomWalk.straight_through`): every emitter but a uniform environment (Mitsuba's ``constant``),
+    which the paths that refract out and hit it find as well as any sample would; an environment map is solved as a
+    directional light is (its light can come from a sun in a few of its pixels, which chance hits find rarely)."""
+    flags, kind = emitter.flags(), mi.EmitterFlags
+    varying = mi.has_flag(flags, kind.SpatiallyVarying) | mi.has_flag(flags, kind.Delta)
+    return ~mi.has_flag(flags, kind.Infinite) | varying
+
+
 #: Below this transmittance (largest channel) a shadow ray's homogeneous segment goes on with odds T / this.
 SHADOW_ROULETTE = 0.5
 
@@ -113,8 +124,8 @@ class ShadowRays:
 
     def _straight(self, ds):
         """The light samples a smooth boundary takes straight (Eq. W4, W5): a delta light's, which no path can reach,
-        and with :attr:`straight_through` every light's but the environment's."""
-        return ds.delta | (self.straight_through & ~mi.has_flag(ds.emitter.flags(), mi.EmitterFlags.Infinite))
+        and with :attr:`straight_through` every light's but a uniform environment's (:func:`through_boundary`)."""
+        return ds.delta | (self.straight_through & through_boundary(ds.emitter))
 
     def _shadow_flight(self, shadow, sampler, channel, ds, remaining):
         """One step of the shadow ray in a medium (``remaining`` the distance left to the light): ratio tracking to
@@ -164,8 +175,9 @@ class ShadowRays:
 
     def _shadow_surface(self, shadow, mei, in_medium, escaped, trial, trial_t, ds, remaining):
         """The shadow ray at a surface: through a null one, blocked by any other, except a smooth dielectric boundary
-        of a translucent object that a delta light (every light but the environment where :attr:`straight_through`)
-        crosses: refracted toward it where Eq. W5 found the path, straight out by Eq. W4 from a surface."""
+        of a translucent object that a delta light (every light but a uniform environment where
+        :attr:`straight_through`) crosses: refracted toward it where Eq. W5 found the path, straight out by Eq. W4 from
+        a surface."""
         ray, si, medium = shadow.ray, shadow.si, shadow.medium
         active_surface = shadow.active & (medium == None)  # noqa: E711
         intersect = active_surface & shadow.needs_intersection
@@ -177,7 +189,7 @@ class ShadowRays:
         bsdf = si.bsdf(ray)
         passed = bsdf.eval_null_transmission(si, active_surface)
         # A delta light through a translucent object's smooth dielectric boundary, which no path can reach (with
-        # straight_through, every light but the environment): refracted toward the light where Eq. W5 solved the
+        # straight_through, every light but a uniform environment): refracted toward the light where Eq. W5 solved the
         # path from a vertex (bent), or from a surface straight out, times the Fresnel transmittance, the beam's
         # compression and, in a homogeneous medium, the refracted path's length inside (Eq. W4). A rough one is left
         # to the next-event estimation at the boundary, where its BSDF takes the light.
