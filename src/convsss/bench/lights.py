@@ -11,10 +11,14 @@ unidirectional path tracer (its image is black), so the dielectric rows take the
     convsss bench lights [--material ketchup --emitter constant ...]
 """
 
+import tempfile
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import scipy.ndimage
+
+from ..files import atomic_write
 
 #: The emitter types, each placed as :func:`emitter_dict` says.
 EMITTERS = ("point", "spot", "directional", "area", "constant", "envmap")
@@ -57,6 +61,24 @@ def write_envmap(path):
 
     rows = np.where(np.arange(8)[:, None, None] < 4, 1.0, 0.1) * np.ones((8, 16, 3))
     mi.Bitmap(rows.astype(np.float32)).write(str(path))
+    return path
+
+
+#: The environment map of the ``sunmap`` benchmark lighting (:func:`write_sun_sky`).
+SUN_SKY = Path(tempfile.gettempdir()) / "convsss-bench-sun-sky.exr"
+
+
+def write_sun_sky(path=SUN_SKY):
+    """A 64x128 environment map of a dim sky (0.3) and a sun of 3x3 pixels (3000) high on its sphere, 95 % of its
+    light from 0.1 % of its pixels: light that chance hits through a smooth boundary find rarely. Written once
+    (the same bytes every time); returns its path."""
+    import mitsuba as mi
+
+    path = Path(path)
+    if not path.is_file():
+        sky = np.full((64, 128, 3), 0.3, dtype=np.float32)
+        sky[10:13, 40:43] = 3000.0
+        atomic_write(path, lambda tmp: mi.Bitmap(sky).write(str(tmp)))
     return path
 
 

@@ -23,9 +23,11 @@ class BenchScene:
     from behind), ``area`` (a smooth dielectric under a square area light at the key light's place and a dim
     constant environment), ``side`` (the same light beside the object, level with its centre, at right angles to
     the camera: thin parts seen against it), ``sun`` (a rough dielectric, roughness 0.3, under a sun, a directional
-    light from the key light's side, and a sky, a constant environment) or ``environment`` (a smooth dielectric
-    under a constant environment alone). A ``companion`` ``(material, diameter_mm)`` adds a sphere of that material,
-    with the same boundary, in front of the object on the camera's right: a second object, rendered its own way."""
+    light from the key light's side, and a sky, a constant environment), ``environment`` (a smooth dielectric
+    under a constant environment alone) or ``sunmap`` (a smooth dielectric under an environment map of a dim sky and
+    a small sun: :func:`~convsss.bench.lights.write_sun_sky`). A ``companion`` ``(material, diameter_mm)`` adds a
+    sphere of that material, with the same boundary, in front of the object on the camera's right: a second object,
+    rendered its own way."""
 
     mesh: str
     material: str
@@ -35,7 +37,7 @@ class BenchScene:
 
 
 #: The lightings whose boundary is a smooth dielectric, and a rough one (the rest: index-matched).
-DIELECTRIC_LIGHTINGS = ("area", "side", "environment")
+DIELECTRIC_LIGHTINGS = ("area", "side", "environment", "sunmap")
 ROUGH_LIGHTINGS = ("sun",)
 
 
@@ -94,6 +96,10 @@ def scene_dict(scene, resolution=800):
         out["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": [0.2] * 3}}
     elif lighting == "environment":
         out["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": [1.0] * 3}}
+    elif lighting == "sunmap":
+        from .lights import write_sun_sky
+
+        out["environment"] = {"type": "envmap", "filename": str(write_sun_sky())}
     elif lighting in ("area", "side"):
         # A square light facing the object (a rectangle emits along its +z), irradiance about 1 at the object,
         # and a dim environment that lights the back.

@@ -28,7 +28,8 @@ from .volpath import _image, _run, relative_mse, two_references
 #: mean free paths across, ketchup (low albedo in green and blue), marble behind a dielectric (diffusion holds); and
 #: the rest of issue 50's: a long-mfp medium behind a rough dielectric under a sun and a sky (skim milk), thin wings
 #: behind glass under a side light (a jade colour on Lucy), potato behind a dielectric under an environment; and issue
-#: 60's pair: a large marble object (diffusion holds) beside a small skin one (it fails), each rendered its own way.
+#: 60's: the potato under an environment map with a small sun, and a large marble object (diffusion holds) beside a
+#: small skin one (it fails), each rendered its own way.
 WALK_SCENES = {
     "skin40-back": BenchScene("bunny", "skin1", 40.0, "back"),
     "armadillo30-area": BenchScene("armadillo.obj", "skin1", 30.0, "area"),
@@ -38,6 +39,7 @@ WALK_SCENES = {
     "dragon40-sun": BenchScene("dragon.ply", "skimmilk", 40.0, "sun"),
     "lucy40-side": BenchScene("lucy.obj", ((0.4, 0.6, 0.8), 4.0), 40.0, "side"),
     "potato40-env": BenchScene("bunny", "potato", 40.0, "environment"),
+    "potato40-map": BenchScene("bunny", "potato", 40.0, "sunmap"),
     "marble40+skin10": BenchScene("bunny", "marble", 40.0, "area", companion=("skin1", 10.0)),
 }
 DEPTHS = (0.0, 2.0, 4.0, 8.0, 16.0, math.inf)

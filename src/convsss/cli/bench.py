@@ -13,7 +13,7 @@ from .options import PROGRESS
 #: ``bench walk``'s scenes (the keys of :data:`convsss.bench.walk.WALK_SCENES`, named here so that the command line
 #: does not import that module): ``bench walk`` and ``bench cost`` take them.
 WALK_SCENE_NAMES = ("skin40-back", "armadillo30-area", "milk4", "ketchup20", "marble40-area", "dragon40-sun",
-                    "lucy40-side", "potato40-env", "marble40+skin10")
+                    "lucy40-side", "potato40-env", "potato40-map", "marble40+skin10")
 
 #: The objects' profile in a benchmark: the integrator's ``profile`` parameter (checked as a render checks it).
 PROFILE = click.option("--profile", default="", metavar="SPEC",
@@ -245,8 +245,9 @@ def bench_volpath_command(scenes, widths, reference_spp, ladder, walk_depth, out
                    "ketchup bunny (null boundary, the key and back lights), a 40 mm marble bunny behind a "
                    "dielectric under an area light, a 40 mm skim-milk dragon behind a rough dielectric under a sun "
                    "and a sky, a 40 mm Lucy of a jade colour (0.4, 0.6, 0.8 at 4 mm) behind glass under a side "
-                   "light, a 40 mm potato bunny behind a dielectric under an environment, and the marble bunny with a "
-                   "10 mm skin1 sphere before it (auto renders each its own way).")
+                   "light, a 40 mm potato bunny behind a dielectric under an environment, the same under an "
+                   "environment map with a small sun, and the marble bunny with a 10 mm skin1 sphere before it (auto "
+                   "renders each its own way).")
 @click.option("--width", type=click.IntRange(16, 4096), default=64, show_default=True,
               help="Image width and height (square).")
 @click.option("--spp", type=click.IntRange(1), default=64, show_default=True,
