@@ -166,13 +166,14 @@ def render_parameters():
                   "are short; a walk that meets an object its transport renders reads its exitance there. "
                   "Where a transport is named and walk_depth is not, 0.", low=0.0, infinite=True, words=("auto",)),
         Parameter("refraction", str, "manifold", "How a walk's scattering vertex reaches a light behind a smooth "
-                  "dielectric boundary (a delta light always; every light but a uniform environment in auto's walks "
-                  "and where walks end in the field): manifold: along the path that refracts to it by Snell's law "
+                  "dielectric boundary (a delta light always; every light but the environment in auto's walks and "
+                  "where walks end in the field): manifold: along the path that refracts to it by Snell's law "
                   "(Eq. W5, manifold next-event estimation, weighed against the paths that refract out and hit "
-                  "it: unbiased for area lights, noisier on detailed meshes, whose many refracted paths the solver "
-                  "misses and the hits carry); straight: along the straight shadow ray, corrected as if the boundary "
-                  "were a plane (Eq. W4: less noise, biased on curved boundaries, 0.84-0.90 of volpathmis on a 1 mm "
-                  "sphere, 0.95-0.99 on a 30 mm armadillo).", choices=("manifold", "straight")),
+                  "it; an environment map too, as a directional light, a uniform environment left to those hits: "
+                  "unbiased for area lights and environment maps, noisier on detailed meshes, whose many refracted "
+                  "paths the solver misses and the hits carry); straight: along the straight shadow ray, corrected "
+                  "as if the boundary were a plane (Eq. W4: less noise, biased on curved boundaries, 0.84-0.90 of "
+                  "volpathmis on a 1 mm sphere, 0.95-0.99 on a 30 mm armadillo).", choices=("manifold", "straight")),
         Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
                   "light; -1 is unbounded with Russian roulette; 0 is not allowed). Light under a translucent "
                   "object's surface is one bounce, whether the transport or a walk renders it (a walk's scattering "

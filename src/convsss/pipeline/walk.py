@@ -431,7 +431,7 @@ class RandomWalk(ShadowRays):
         emitter = si.emitter(scene)
         seen = active_surface & (emitter != None)  # noqa: E711
         # Refracted straight out of the last vertex to a light it sampled by Eq. W5: weighed against that, not direct
-        bent = path.straight_out & through_boundary(emitter)
+        bent = path.straight_out & through_boundary(emitter, self.refracting)
         direct = first | (path.specular_chain & ~bent)
         to_emitter = mi.DirectionSample3f(scene, si, path.last_scatter)
         if self.lights[0] is None:

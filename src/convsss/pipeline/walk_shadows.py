@@ -19,14 +19,16 @@ from .spectral_mis import mis, update
 mi = import_mitsuba()
 
 
-def through_boundary(emitter):
+def through_boundary(emitter, solved):
     """Per lane, whether a smooth boundary takes ``emitter``'s light straight (Eq. W4, W5) where the walk lets it
-    (:attr:`~.walk.RandomWalk.straight_through`): every emitter but a uniform environment (Mitsuba's ``constant``),
-    which the paths that refract out and hit it find as well as any sample would; an environment map is solved as a
-    directional light is (its light can come from a sun in a few of its pixels, which chance hits find rarely)."""
+    (:attr:`~.walk.RandomWalk.straight_through`): every emitter but an environment, and where Eq. W5 ``solved`` the
+    refracted path (:attr:`~.walk.RandomWalk.refracting`) an environment map too, as a directional light (its light
+    can come from a sun in a few of its pixels, which chance hits through the boundary find rarely). A uniform
+    environment (Mitsuba's ``constant``) is left to the paths that refract out and hit it, which find it as well as
+    any sample would; Eq. W4's straight ray read it 2-3 % low."""
     flags, kind = emitter.flags(), mi.EmitterFlags
-    varying = mi.has_flag(flags, kind.SpatiallyVarying) | mi.has_flag(flags, kind.Delta)
-    return ~mi.has_flag(flags, kind.Infinite) | varying
+    environment = mi.has_flag(flags, kind.Infinite) & ~mi.has_flag(flags, kind.Delta)
+    return ~environment | (mi.has_flag(flags, kind.SpatiallyVarying) & solved)
 
 
 #: Below this transmittance (largest channel) a shadow ray's homogeneous segment goes on with odds T / this.
@@ -125,7 +127,7 @@ class ShadowRays:
     def _straight(self, ds):
         """The light samples a smooth boundary takes straight (Eq. W4, W5): a delta light's, which no path can reach,
         and with :attr:`straight_through` every light's but a uniform environment's (:func:`through_boundary`)."""
-        return ds.delta | (self.straight_through & through_boundary(ds.emitter))
+        return ds.delta | (self.straight_through & through_boundary(ds.emitter, self.refracting))
 
     def _shadow_flight(self, shadow, sampler, channel, ds, remaining):
         """One step of the shadow ray in a medium (``remaining`` the distance left to the light): ratio tracking to
