@@ -295,6 +295,25 @@ def _sun_sky(mi, path):
     return {"light": {"type": "envmap", "filename": str(path)}}
 
 
+def test_an_environment_goes_through_a_boundary_where_its_light_is_concentrated(mi, tmp_path):
+    """Eq. W5 takes an environment through a smooth boundary where a few directions give most of its light (a sun:
+    chance hits find it rarely), and leaves one whose light comes from everywhere to the hits: the second moment of
+    its radiance over the sphere, 1 for a uniform one, 1.67 for a sky of two halves (1 and 0.1), hundreds for a sun
+    (a point light is no environment)."""
+    from convsss.bench.lights import write_envmap
+    from convsss.pipeline.walk_shadows import CONCENTRATION, concentration, solved_environments
+
+    uniform = mi.load_dict({"type": "constant"})
+    halves = mi.load_dict({"type": "envmap", "filename": str(write_envmap(tmp_path / "halves.exr"))})
+    sun = mi.load_dict(_sun_sky(mi, tmp_path / "sun.exr")["light"])
+    assert concentration(uniform) == 1.0
+    assert abs(concentration(halves) - 1.67) < 0.02
+    assert concentration(sun) > 10 * CONCENTRATION
+    for environment, solved in ((uniform, False), (halves, False), (sun, True)):
+        scene = mi.load_dict({"type": "scene", "environment": environment, "point": {"type": "point"}})
+        assert len(solved_environments(scene)) == solved
+
+
 @pytest.mark.parametrize("refraction", ["manifold", pytest.param("straight", marks=pytest.mark.slow)])
 def test_auto_walks_reach_an_environment_map_through_a_smooth_boundary_as_volpathmis_does(mi, sphere_scene,
                                                                                          tmp_path, refraction):

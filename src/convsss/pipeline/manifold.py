@@ -3,12 +3,12 @@ the light a scattering vertex ``x`` inside a translucent object receives from a 
 smooth dielectric boundary, along the one path ``x -> p -> y`` that refracts at ``p`` by Snell's law.
 
 The walk (:mod:`.walk_shadows`) asks for it where a shadow ray would cross such a boundary straight: a delta light,
-which no path can reach, and with :attr:`~.walk.RandomWalk.straight_through` every light but a uniform environment
-(an environment map is a direction to reach, as a directional light is). The
+which no path can reach, and with :attr:`~.walk.RandomWalk.straight_through` every light but an environment without
+a sun (one with a sun is a direction to reach, as a directional light is: :mod:`.walk_shadows`). The
 straight ray's crossing is the start; :func:`refract_toward` then solves for the direction ``w`` at ``x`` whose ray,
 refracted where it leaves the object (about the shading normal, as the boundary's BSDF refracts), leaves along
 
-    u = (y - p) / |y - p|                 (or the light's direction, for a directional light or an environment map)
+    u = (y - p) / |y - p|                 (or the light's direction, for a directional light or an environment)
 
 by Newton's method, its 2x2 Jacobian carried by ray differentials (Igehy 1999: the hit point moves on the surface's
 tangent plane, the shading normal with it by the mesh's ``dn_du``, ``dn_dv``, the refracted direction by the

@@ -161,16 +161,16 @@ def render_parameters():
                   "0 renders with the transport alone (paper Eq. 7); inf follows every walk to its end, which is "
                   "Mitsuba's volpathmis for those objects. auto: each object its own way: the transport where "
                   "diffusion holds (at least 20 transport mean free paths across its mean chord 4V/A, reduced albedo "
-                  "at least 0.95), walks to their end elsewhere, with every light but a uniform environment sampled "
-                  "through smooth boundaries along the path that refracts to it (Eq. W5): where diffusion fails walks "
-                  "are short; a walk that meets an object its transport renders reads its exitance there. "
+                  "at least 0.95), walks to their end elsewhere, with every light but an environment without a sun "
+                  "sampled through smooth boundaries along the path that refracts to it (Eq. W5): where diffusion "
+                  "fails walks are short; a walk that meets an object its transport renders reads its exitance there. "
                   "Where a transport is named and walk_depth is not, 0.", low=0.0, infinite=True, words=("auto",)),
         Parameter("refraction", str, "manifold", "How a walk's scattering vertex reaches a light behind a smooth "
                   "dielectric boundary (a delta light always; every light but the environment in auto's walks and "
                   "where walks end in the field): manifold: along the path that refracts to it by Snell's law "
                   "(Eq. W5, manifold next-event estimation, weighed against the paths that refract out and hit "
-                  "it; an environment map too, as a directional light, a uniform environment left to those hits: "
-                  "unbiased for area lights and environment maps, noisier on detailed meshes, whose many refracted "
+                  "it; an environment map with a sun too, as a directional light, one without left to those hits: "
+                  "unbiased for area lights and environments, noisier on detailed meshes, whose many refracted "
                   "paths the solver misses and the hits carry); straight: along the straight shadow ray, corrected "
                   "as if the boundary were a plane (Eq. W4: less noise, biased on curved boundaries, 0.84-0.90 of "
                   "volpathmis on a 1 mm sphere, 0.95-0.99 on a 30 mm armadillo).", choices=("manifold", "straight")),
@@ -241,9 +241,9 @@ class RenderMode:
         0: the transport's exitance (paper Eq. 7); inf: walks to their end (volumetric path tracing of the objects'
         media, ``volpathmis``'s estimator); between: walks ended in the diffusion field at that depth (Eq. W3).
     straight : bool
-        Whether walks sample every light but a uniform environment through smooth boundaries (Eq. W5, the refracted path
-        to it, weighed against the paths that hit it): walks ended in the field, and ``auto``'s walks; at an explicit
-        inf only a delta light, which no path reaches, so that the walk stays ``volpathmis``.
+        Whether walks sample every light but an environment without a sun through smooth boundaries (Eq. W5, the path
+        that refracts to it, weighed against the paths that hit it): walks ended in the field, and ``auto``'s walks;
+        at an explicit inf only a delta light, which no path reaches, so that the walk stays ``volpathmis``.
     transported : frozenset
         The objects (their :attr:`~.objects.TranslucentObject.key`) that their transport renders while the others
         walk (``auto`` on a scene where diffusion holds on some objects only): a path that meets one reads its
@@ -282,8 +282,8 @@ class RenderMode:
 def render_mode(params, objects):
     """The :class:`RenderMode` of ``params`` for the translucent ``objects``: ``walk_depth`` as given, or for
     ``auto`` each object its own way (issue 60): 0 (the transport) where diffusion holds on every object
-    (:meth:`~.objects.TranslucentObject.diffusion_holds`), else inf with every light but a uniform environment straight
-    through smooth boundaries, the objects where diffusion holds still rendered by their transport."""
+    (:meth:`~.objects.TranslucentObject.diffusion_holds`), else inf with every light but an environment without a sun
+    straight through smooth boundaries, the objects where diffusion holds still rendered by their transport."""
     if params.walk_depth != "auto":
         depth = float(params.walk_depth)
         return RenderMode(depth, straight=0.0 < depth < math.inf)
