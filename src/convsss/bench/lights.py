@@ -69,7 +69,7 @@ SUN_SKY = Path(tempfile.gettempdir()) / "convsss-bench-sun-sky.exr"
 
 
 def write_sun_sky(path=SUN_SKY):
-    """A 64x128 environment map of a dim sky (0.3) and a sun of 3x3 pixels (3000) high on its sphere, 95 % of its
+    """A 64x128 environment map of a dim sky (0.3) and a sun of 3x3 pixels (3000) high on its sphere, 90 % of its
     light from 0.1 % of its pixels: light that chance hits through a smooth boundary find rarely. Written once
     (the same bytes every time); returns its path."""
     import mitsuba as mi
