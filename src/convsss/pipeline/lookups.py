@@ -139,17 +139,20 @@ class ExitanceLookups:
             self.count += len(chunk)
         return out
 
-    def add_recorded(self, total, records, count, incident=None):
-        """Adds to ``total`` the recorded hits' ``weight M`` from each object's transport (numpy, positions in mm,
-        outward normals for the transports that use them); hits on an object without a transport go to
-        ``incident``'s deferred hits (``(deferred, tags, weight)`` of :meth:`.path_tracer.PathTracer.incident`) with
-        their lane's tag and weight. Returns the lanes and ``M`` (numpy) of the hits that were the first of a camera
-        ray."""
+    def add_recorded(self, total, hits, incident=None, camera=None):
+        """Adds to ``total`` the ``weight M`` of the hits a kernel recorded (:class:`HitRecords`) from each object's
+        transport (numpy, positions in mm, outward normals for the transports that use them); hits on an object
+        without a transport go to ``incident``'s deferred hits (``(deferred, tags, weight)`` of
+        :meth:`.path_tracer.PathTracer.incident`) with their lane's tag and weight. Where the paths are ``camera``
+        rays, the lanes and ``M`` (numpy) of the hits that were a ray's first are kept in :attr:`first_recorded`."""
+        count = hits.count
         if count == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
+            if camera is not None:
+                self.first_recorded = (camera, np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
+            return
         written = dr.arange(mi.UInt32, count)
         owner, points, normals, beta, lanes, first, faces = (dr.gather(type(r), r, written).numpy().T
-                                                             for r in records)
+                                                             for r in hits.records)
         # The loop's threads record in any order; a path records its own hits in order: sorted by lane, the
         # transports are asked the same points in the same order whatever the threads (and neighbouring pixels' hits
         # together).
@@ -176,4 +179,5 @@ class ExitanceLookups:
         lane, start = np.unique(lanes, return_index=True)
         summed = np.add.reduceat(beta * exitance, start, axis=0)
         dr.scatter_add(total, _color(summed), mi.UInt32(lane.astype(np.uint32)))
-        return lanes[first].astype(np.int64), exitance[first]
+        if camera is not None:
+            self.first_recorded = (camera, lanes[first].astype(np.int64), exitance[first])

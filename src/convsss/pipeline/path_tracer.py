@@ -305,15 +305,12 @@ class PathTracer:
 
         One symbolic Dr.Jit loop (:meth:`_paths`) traces every bounce; the hits whose ``M`` the screen table does not
         know are recorded there and asked of the transports afterwards (:meth:`.lookups.ExitanceLookups.add_recorded`).
-        Should more hits need
-        recording than there is room for, the paths are traced again from a copy of the sampler taken before (the
-        same paths) with room for all of them.
+        Should more hits need recording than there is room for, the paths are traced again from a copy of the sampler
+        taken before (the same paths) with room for all of them.
         """
         (total, valid), hits = HitRecords.traced(lambda s, h: self._paths(s, ray, first_depth, h), sampler,
                                                  dr.width(ray.o))
-        first = self.lookups.add_recorded(total, hits.records, hits.count, incident)
-        if first_depth == 0:
-            self.lookups.first_recorded = (ray, *first)
+        self.lookups.add_recorded(total, hits, incident, camera=ray if first_depth == 0 else None)
         dr.eval(total, valid)
         return total, valid
 
@@ -365,7 +362,7 @@ class PathTracer:
             contribution += throughput * self._direct_light(si, bsdf, ray.d, eta, u_light, translucent, opaque, alive)
             if self.single:  # the distance's sample, then the emitters'
                 contribution += throughput * self.single_scattering(si, which, eta, sampler.next_1d(translucent),
-                                                          sampler.next_2d(translucent), translucent)
+                                                                    sampler.next_2d(translucent), translucent)
 
             bs, bsdf_weight, continues, entering, exiting = self._bounce(si, bsdf, which, eta, u_lobe, u_dir, u_through,
                                                                          opaque, translucent, leaving)

@@ -184,7 +184,7 @@ class RandomWalk(ShadowRays):
         self.refracting = params.refraction == "manifold" and any(obj.boundary == "dielectric" for obj in objects)
         #: The environments whose light Eq. W5 takes through a smooth boundary (where it solves): those whose light is
         #: concentrated (:func:`~.walk_shadows.solved_environments`); the others are left to the paths that hit them.
-        self.environments = solved_environments(scene) if self.refracting and mode.straight else []
+        self.environments = solved_environments(scene) if self.refracting and self.straight_through else []
         #: Shadow rays take a homogeneous medium's transmittance whole (module doc), but in ``volpathmis``'s estimator
         #: and without path roulette (a fit's walks: its closed loop read 3.3 % off in mfp with it, 1.5 % without).
         self.analytic = not mode.plain and self.rr_depth < MAX_WALK
@@ -276,10 +276,7 @@ class RandomWalk(ShadowRays):
 
         path, hits = HitRecords.traced(recording, sampler, dr.width(ray.o))
         self.hits = None  # room for every lane: not kept between kernels
-        lookups = self.tracer.lookups
-        first = lookups.add_recorded(path.result, hits.records, hits.count)
-        if medium is None:
-            lookups.first_recorded = (ray, *first)
+        self.tracer.lookups.add_recorded(path.result, hits, camera=ray if medium is None else None)
         return self._count(path)
 
     @dr.syntax
