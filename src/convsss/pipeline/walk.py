@@ -295,8 +295,11 @@ class RandomWalk(ShadowRays):
             path = self._roulette(path, sampler)
             path, mei, in_medium, escaped, scatter = self._flight(path, sampler)
             path, scatter = self._field_ends(path, mei, scatter)
-            path = self._scatter(path, mei, scatter, sampler)
-            path = self._surface(path, in_medium, escaped, sampler)
+            # Symbolic branches: a packet of lanes none of which scatters (or meets a surface) skips that step's work
+            if scatter:
+                path = self._scatter(path, mei, scatter, sampler)
+            if (path.active & (path.medium == None)) | escaped:  # noqa: E711 (a Dr.Jit pointer array)
+                path = self._surface(path, in_medium, escaped, sampler)
         dr.eval(path.result, path.valid, path.scatterings, path.jumps, path.refracted, path.unsolved, path.ended,
                 path.events, path.leaked, path.jacobian)
         return path
