@@ -63,7 +63,7 @@ RADII = tuple(2.0 * 2.0 ** (k / 2.0) for k in range(9))  # 2 ... 32
 #: Walks per channel in :func:`exit_table`, and bins of ``mu`` in its density.
 TABLE_PATHS = 1 << 15
 MU_BINS = 16
-#: The clearance grid: at most this many nodes, and cells no finer than half the least radius's mean free path.
+#: The clearance grids: at most this many nodes (all objects' together), cells no finer than a quarter mean free path.
 MAX_CLEARANCE_NODES = 1 << 21
 #: A walk asks for a ball from this many scattering events on: fewer have rarely gone deep enough (a ball's least
 #: depth is a few mean free paths, some ``depth^2 / 2`` events), and a packet of lanes that ask for none skips the
@@ -387,7 +387,8 @@ class Jumps:
             lo, hi = world_bbox(obj.shape, obj.to_world)
             if 0.5 * float(np.min(hi - lo)) < (kept + RADII[0]) * mfp:
                 continue  # too thin to hold the least ball anywhere
-            spacing = max(0.25 * mfp, float(np.prod(hi - lo) / MAX_CLEARANCE_NODES) ** (1.0 / 3.0))
+            budget = MAX_CLEARANCE_NODES / len(objects)  # the objects' grids together
+            spacing = max(0.25 * mfp, float(np.prod(hi - lo) / budget) ** (1.0 / 3.0))
             surfaces = [(obj.shape, obj.to_world)]
             for _, shape, instance in scene_surfaces(mi, scene):  # what lies inside its box: inclusions
                 to_world = instance_to_world(mi, instance)

@@ -175,12 +175,13 @@ def render_parameters():
                   "as if the boundary were a plane (Eq. W4: less noise, biased on curved boundaries, 0.84-0.90 of "
                   "volpathmis on a 1 mm sphere, 0.95-0.99 on a 30 mm armadillo).", choices=("manifold", "straight")),
         Parameter("jumps", str, "on", "Whether auto's walks cross the deep interior of an object of isotropic "
-                  "scattering in one step (shell tracing, Eq. J1): from a scattering vertex at least 6 mean free "
-                  "paths plus a ball's radius below every surface, to a point of that ball's sphere drawn from a "
-                  "homogeneous sphere's tabulated exit distribution, with its throughput: the same light with fewer "
-                  "events (the light sampled inside the ball, below 1e-2 of a surface vertex's, is left out). off: "
-                  "every event walked. Not at an explicit walk_depth (inf is volpathmis's estimator).",
-                  choices=("on", "off")),
+                  "scattering in one step (shell tracing, Eq. J1): from a scattering vertex a ball's radius below "
+                  "every surface, to a point of that ball's sphere drawn from a homogeneous sphere's tabulated exit "
+                  "distribution, with its throughput: the same light with fewer events. The ball keeps 6 mean free "
+                  "paths from the surface where light is sampled inside the object (what it leaves out there is "
+                  "below 1e-2 of a surface vertex's light), none behind a rough dielectric or under environments "
+                  "left to the paths that hit them. off: every event walked. Not at an explicit walk_depth (inf is "
+                  "volpathmis's estimator).", choices=("on", "off")),
         Parameter("max_depth", int, 6, "Longest path (Mitsuba's convention: 1 shows emitters only, 2 adds direct "
                   "light; -1 is unbounded with Russian roulette; 0 is not allowed). Light under a translucent "
                   "object's surface is one bounce, whether the transport or a walk renders it (a walk's scattering "
