@@ -170,3 +170,22 @@ def test_an_explicit_inf_takes_no_jumps(mi, sphere_scene):
     walk = mi.load_dict({"type": "convsss", "walk_depth": "inf"})
     mi.render(scene, integrator=walk, spp=2)
     assert walk.stats["walk"]["jumps"] == 0
+
+
+def test_tables_are_kept_between_processes_whole(tmp_path, monkeypatch):
+    """Made once and read back after; a broken file is made again, not read."""
+    from convsss.pipeline import jumps
+
+    monkeypatch.setenv("CONVSSS_CACHE", str(tmp_path))
+    calls = []
+
+    def make():
+        calls.append(1)
+        return {"a": np.arange(3.0)}
+
+    assert np.array_equal(jumps._kept("t.npz", make)["a"], np.arange(3.0))
+    assert np.array_equal(jumps._kept("t.npz", make)["a"], np.arange(3.0))
+    assert len(calls) == 1
+    (tmp_path / "jumps" / "t.npz").write_bytes(b"broken")
+    assert np.array_equal(jumps._kept("t.npz", make)["a"], np.arange(3.0))
+    assert len(calls) == 2

@@ -69,6 +69,8 @@ MAX_CLEARANCE_NODES = 1 << 21
 #: depth is a few mean free paths, some ``depth^2 / 2`` events), and a packet of lanes that ask for none skips the
 #: lookup.
 MIN_SCATTERINGS = 4
+#: The most bytes :func:`table_folder` keeps (the oldest files go first).
+KEPT_BYTES = 256 << 20
 
 
 @njit(cache=True)
@@ -214,14 +216,16 @@ def _digest(surfaces, lo, hi, spacing):
 
 def clearance(surfaces, lo, hi, spacing):
     """:func:`clearance_grid` as ``(nodes (mi.Float), origin, shape, deepest)``, kept for the process (a session's
-    renders, one per seed, build their walks anew)."""
+    renders, one per seed, build their walks anew) and in :func:`table_folder` between processes (0.2-0.9 s to make,
+    most of a small render's command)."""
     key = _digest(surfaces, lo, hi, spacing)
     if key not in _CLEARANCES:
         while len(_CLEARANCES) >= 4:
             _CLEARANCES.pop(next(iter(_CLEARANCES)))
-        values, origin = clearance_grid(surfaces, lo, hi, spacing)
-        _CLEARANCES[key] = (mi.Float(np.ascontiguousarray(values.ravel(), dtype=np.float32)), origin, values.shape,
-                            float(values.max()))
+        kept = _kept(f"clearance-{key}.npz", lambda: dict(zip(("values", "origin"), clearance_grid(
+            surfaces, lo, hi, spacing))))
+        values = np.asarray(kept["values"], dtype=np.float32)
+        _CLEARANCES[key] = (mi.Float(values.ravel()), np.asarray(kept["origin"]), values.shape, float(values.max()))
     return _CLEARANCES[key]
 
 
@@ -272,6 +276,7 @@ class _Ball:
     shape: tuple
     mfp: float
     margin: float
+    count: int  # of RADII, those that fit somewhere
     offset: int
 
 
@@ -296,45 +301,60 @@ _TABLES = {}
 
 
 def table_folder():
-    """Where :func:`exit_table`'s tables are kept between processes: ``$CONVSSS_CACHE`` or ``~/.cache/convsss``."""
+    """Where :func:`exit_table`'s tables and the clearance grids are kept between processes: ``jumps`` in
+    ``$CONVSSS_CACHE`` or ``~/.cache/convsss``."""
     import os
     from pathlib import Path
 
     return Path(os.environ.get("CONVSSS_CACHE") or Path.home() / ".cache" / "convsss") / "jumps"
 
 
-def _channel_table(ratio, albedo, seed):
-    """:func:`exit_table` for :data:`RADII` times ``ratio`` at ``albedo``, read from :func:`table_folder` where an
-    earlier process made it (0.2-0.6 s a channel), else made and written there (whole, or not at all)."""
-    import hashlib
+def _kept(name, make):
+    """The arrays ``make()`` returns (a dict of name: array), read from :func:`table_folder`'s file ``name`` where an
+    earlier process made them, else made and written there (whole, or not at all: a read-only home makes them
+    again next time)."""
     import os
     import tempfile
 
-    radii = np.asarray(RADII) * ratio
-    key = repr((radii.tolist(), albedo, TABLE_PATHS, MU_BINS, seed)).encode()
-    path = table_folder() / f"{hashlib.blake2b(key, digest_size=12).hexdigest()}.npz"
+    path = table_folder() / name
     try:
         with np.load(path) as kept:
-            return kept["uncollided"], kept["collided"]
+            return {key: kept[key] for key in kept.files}
     except (OSError, KeyError, ValueError):
         pass
-    uncollided, collided = exit_table(radii, albedo, seed=seed)
+    made = make()
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+        files = sorted(path.parent.glob("*.npz"), key=lambda f: f.stat().st_mtime)
+        while files and sum(f.stat().st_size for f in files) > KEPT_BYTES:  # the oldest go first
+            files.pop(0).unlink(missing_ok=True)
         with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as f:
-            np.savez(f, uncollided=uncollided, collided=collided)
+            np.savez(f, **made)
         os.replace(f.name, path)
     except OSError:
-        pass  # a read-only home: made again next time
-    return uncollided, collided
+        pass
+    return made
 
 
-def _tables(sigma_t, albedo):
-    """Eq. J1's ``T``, ``U`` (K, 3) and ``C`` (K, 3, bins) for balls of :data:`RADII` mean free paths of the least
-    extinction in a medium of ``sigma_t`` and ``albedo`` (per channel), kept for the process."""
-    key = (tuple(np.round(sigma_t / sigma_t.min(), 6).tolist()), tuple(np.round(albedo, 6).tolist()))
+def _channel_table(ratio, albedo, seed, count):
+    """:func:`exit_table` for the first ``count`` of :data:`RADII` times ``ratio`` at ``albedo`` (0.2-0.6 s a
+    channel for all of them), kept between processes (:func:`_kept`)."""
+    import hashlib
+
+    radii = np.asarray(RADII[:count]) * ratio
+    key = hashlib.blake2b(repr((radii.tolist(), albedo, TABLE_PATHS, MU_BINS, seed)).encode(), digest_size=12)
+    kept = _kept(f"exits-{key.hexdigest()}.npz", lambda: dict(zip(("uncollided", "collided"), exit_table(
+        radii, albedo, seed=seed))))
+    return kept["uncollided"], kept["collided"]
+
+
+def _tables(sigma_t, albedo, count):
+    """Eq. J1's ``T``, ``U`` (K, 3) and ``C`` (K, 3, bins) for balls of the first ``count`` of :data:`RADII` mean free
+    paths of the least extinction in a medium of ``sigma_t`` and ``albedo`` (per channel), kept for the process (the
+    walks of the tables stop at the largest: their cost grows as its square)."""
+    key = (tuple(np.round(sigma_t / sigma_t.min(), 6).tolist()), tuple(np.round(albedo, 6).tolist()), count)
     if key not in _TABLES:
-        us, cs = zip(*(_channel_table(ratio, a, c) for c, (ratio, a) in enumerate(zip(*key))))
+        us, cs = zip(*(_channel_table(ratio, a, c, count) for c, (ratio, a) in enumerate(zip(*key[:2]))))
         uncollided, collided = np.stack(us, axis=1), np.stack(cs, axis=1)
         _TABLES[key] = (uncollided + collided.sum(axis=2), uncollided, collided)
     return _TABLES[key]
@@ -396,19 +416,20 @@ class Jumps:
                 if shape is not obj.shape and np.all(box[0] >= lo) and np.all(box[1] <= hi):
                     surfaces.append((shape, to_world))
             nodes, origin, shape, deepest = clearance(surfaces, lo, hi, spacing)
-            if deepest < (kept + RADII[0]) * mfp:
-                continue  # nowhere deep enough for the least ball
-            total, uncollided, collided = _tables(sigma_t, albedo)
+            count = sum((kept + r) * mfp <= deepest for r in RADII)  # the radii that fit somewhere
+            if count == 0:
+                continue
+            total, uncollided, collided = _tables(sigma_t, albedo, count)
             self.balls.append(_Ball(media[k], nodes, mi.Vector3f(*origin.tolist()), spacing, shape, mfp,
-                                    kept, len(totals) * len(RADII) * 3))
+                                    kept, count, sum(t.size for t in totals)))
             totals.append(total), uncollideds.append(uncollided), collideds.append(collided)
         if self.balls:
-            collided = np.stack(collideds)
-            mass = collided.sum(axis=3, keepdims=True)
-            cdf = np.cumsum(collided, axis=3) / np.where(mass > 0.0, mass, 1.0)
-            cdf[..., -1] = 1.0
-            self.total = mi.Float(np.stack(totals).ravel())
-            self.uncollided = mi.Float(np.stack(uncollideds).ravel())
+            collided = np.concatenate([c.reshape(-1, MU_BINS) for c in collideds])
+            mass = collided.sum(axis=1, keepdims=True)
+            cdf = np.cumsum(collided, axis=1) / np.where(mass > 0.0, mass, 1.0)
+            cdf[:, -1] = 1.0
+            self.total = mi.Float(np.concatenate([t.ravel() for t in totals]))
+            self.uncollided = mi.Float(np.concatenate([u.ravel() for u in uncollideds]))
             self.density = mi.Float(collided.ravel() * MU_BINS)  # C per unit mu
             self.cdf = mi.Float(cdf.ravel())
 
@@ -426,7 +447,7 @@ class Jumps:
             ix, iy, iz = (dr.clip(mi.Int32(dr.round(node[a])), 0, ball.shape[a] - 1) for a in range(3))
             cell = mi.UInt32((ix * ball.shape[1] + iy) * ball.shape[2] + iz)
             room = dr.gather(mi.Float, ball.clearance, cell, here) / ball.mfp - ball.margin
-            k = dr.minimum(mi.Int32(dr.floor(2.0 * dr.log2(dr.maximum(room, 1e-6) / RADII[0]))), len(RADII) - 1)
+            k = dr.minimum(mi.Int32(dr.floor(2.0 * dr.log2(dr.maximum(room, 1e-6) / RADII[0]))), ball.count - 1)
             here &= k >= 0
             fits |= here
             radius[here] = RADII[0] * ball.mfp * dr.exp2(mi.Float(k) * 0.5)
