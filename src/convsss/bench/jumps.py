@@ -1,9 +1,10 @@
 """Jumps across the deep interior (issue 60, item 4): what they save where the default walks.
 
-Per scene (a ``bench walk`` or ``bench volpath`` scene, or ``MATERIAL:DIAMETER_MM:LIGHTING`` for a bunny of :class:`~.scenes.BenchScene`),
-in one process, the default render with the parameter ``jumps`` off and on: the shading stage's seconds (median of
-``runs`` renders of new seeds after one untimed, the kernels compiled), the walk's scattering events and jumps per
-path, and the image's mean over the object per channel with jumps over without (the same seeds). ``--force-walks``
+Per scene (a ``bench walk`` or ``bench volpath`` scene, or ``MATERIAL:DIAMETER_MM:LIGHTING`` for a bunny of
+:class:`~.scenes.BenchScene`), in one process, the default render with the parameter ``jumps`` off and on: the
+shading stage's seconds (median of ``runs`` renders of new seeds after one untimed, the kernels compiled), the walk's
+scattering events and jumps per path, and the image's mean over the object per channel with jumps over without (the
+same seeds). ``--force-walks``
 renders walks where ``auto`` keeps the transport (the diffusion rule's span set beyond every object: a measurement
 of the walks themselves on large objects, not what the default renders).
 

@@ -69,8 +69,10 @@ MAX_CLEARANCE_NODES = 1 << 21
 #: depth is a few mean free paths, some ``depth^2 / 2`` events), and a packet of lanes that ask for none skips the
 #: lookup.
 MIN_SCATTERINGS = 4
-#: The most bytes :func:`table_folder` keeps (the oldest files go first).
+#: The most bytes :func:`table_folder` keeps (the oldest files go first), and the version of what it keeps (in every
+#: file's key: a change to :func:`exit_table` or :func:`clearance_grid` must change it).
 KEPT_BYTES = 256 << 20
+FORMAT = "jumps-2"
 
 
 @njit(cache=True)
@@ -174,17 +176,20 @@ def _mesh_points(vertices, faces, spacing):
 _MOST_SEGMENTS = 256
 
 
-def _shape_points(shape, to_world, spacing):
-    """Points on ``shape`` placed by ``to_world`` and how far every point of it may be from them (:func:`_mesh_points`;
-    another shape's parametrization on a grid, the cover its cells' longest diagonal)."""
+def _shape_points(shape, to_world, spacing, lo, hi):
+    """Points on ``shape`` placed by ``to_world`` near the box ``lo``-``hi`` and how far every point of it there may
+    be from them (:func:`_mesh_points` for the triangles that reach the box; another shape's parametrization on a
+    grid, the cover its cells' longest diagonal)."""
     from .surface import has_vertices, mesh_arrays
 
     if has_vertices(shape):
         vertices, faces = mesh_arrays(shape)
         world = vertices @ to_world[:3, :3].T + to_world[:3, 3]
-        return _mesh_points(world, faces, spacing)
-    lo, hi = world_bbox(shape, to_world)
-    n = int(np.clip(np.ceil(np.pi * float(np.max(hi - lo)) / spacing), 8, 2048))
+        corners = world[faces]
+        near = np.all((corners.max(axis=1) >= lo) & (corners.min(axis=1) <= hi), axis=1)
+        return _mesh_points(world, faces[near], spacing)
+    box = world_bbox(shape, to_world)
+    n = int(np.clip(np.ceil(np.pi * float(np.max(box[1] - box[0])) / spacing), 8, 2048))
     u, v = np.meshgrid(np.linspace(0.0, 1.0, n + 1), np.linspace(0.0, 1.0, n + 1), indexing="ij")
     ps = shape.sample_position(0.0, mi.Point2f(u.ravel(), v.ravel()))
     local = np.stack([np.asarray(c) for c in ps.p], axis=1).astype(np.float64)
@@ -192,6 +197,27 @@ def _shape_points(shape, to_world, spacing):
     cover = max(float(np.linalg.norm(grid[1:, 1:] - grid[:-1, :-1], axis=2).max()),
                 float(np.linalg.norm(grid[1:, :-1] - grid[:-1, 1:], axis=2).max()))
     return grid.reshape(-1, 3), cover
+
+
+def _exact_distance(shape, to_world, axes):
+    """The distance to ``shape`` placed by ``to_world`` at the grid points ``axes`` (three 1D arrays, sparse), where
+    it is known in closed form: a sphere placed by a similarity, a rectangle of perpendicular sides; else None."""
+    placed = to_world @ np.array(mi.traverse(shape)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+    linear, centre = placed[:3, :3], placed[:3, 3]
+    x, y, z = np.meshgrid(*[a - c for a, c in zip(axes, centre)], indexing="ij", sparse=True)
+    lengths = np.linalg.norm(linear, axis=0)
+    if shape.class_name() == "Sphere":
+        if not np.allclose(linear.T @ linear, lengths[0] ** 2 * np.identity(3), rtol=1e-6, atol=1e-12):
+            return None  # an ellipsoid
+        return np.abs(np.sqrt(x * x + y * y + z * z) - lengths[0])
+    if shape.class_name() == "Rectangle" and abs(linear[:, 0] @ linear[:, 1]) <= 1e-9 * lengths[0] * lengths[1]:
+        a, b = linear[:, 0] / lengths[0], linear[:, 1] / lengths[1]
+        normal = np.cross(a, b)
+        s, t = a[0] * x + a[1] * y + a[2] * z, b[0] * x + b[1] * y + b[2] * z
+        h = normal[0] * x + normal[1] * y + normal[2] * z
+        ds, dt = np.maximum(np.abs(s) - lengths[0], 0.0), np.maximum(np.abs(t) - lengths[1], 0.0)
+        return np.sqrt(ds * ds + dt * dt + h * h)
+    return None
 
 
 _CLEARANCES = {}
@@ -203,14 +229,16 @@ def _digest(surfaces, lo, hi, spacing):
 
     from .surface import has_vertices, mesh_arrays
 
-    h = hashlib.blake2b(np.asarray([*lo, *hi, spacing], dtype=np.float64).tobytes(), digest_size=16)
+    h = hashlib.blake2b(np.asarray([*lo, *hi, spacing], dtype=np.float64).tobytes() + FORMAT.encode(), digest_size=16)
     for shape, to_world in surfaces:
         h.update(np.asarray(to_world, dtype=np.float64).tobytes())
         if has_vertices(shape):
             for array in mesh_arrays(shape):
                 h.update(np.ascontiguousarray(array).tobytes())
-        else:
-            h.update(repr((shape.class_name(), str(shape.bbox()))).encode())
+        else:  # its class and points on it
+            u, v = np.meshgrid(np.linspace(0.0, 1.0, 9), np.linspace(0.0, 1.0, 9), indexing="ij")
+            points = shape.sample_position(0.0, mi.Point2f(u.ravel(), v.ravel())).p
+            h.update(shape.class_name().encode() + np.stack([np.asarray(c) for c in points]).tobytes())
     return h.hexdigest()
 
 
@@ -234,23 +262,23 @@ def clearance_grid(surfaces, lo, hi, spacing):
     of ``spacing`` over the box ``lo``-``hi`` (scene units, grown by two cells): ``(values (nx, ny, nz), origin)``,
     such that a node's value is at most the distance of every point nearer to it than to any other node. A node's
     distance to the nearest node that holds a surface point (Euclidean transform) less half a cell's diagonal (that
-    point off its node) and the points' cover gives a bound at the node (a sphere's: its distance itself), less
-    half a cell's diagonal again a bound around it."""
+    point off its node) and the points' cover gives a bound at the node (a sphere's, a rectangle's: its distance
+    itself), less half a cell's diagonal again a bound around it."""
     import scipy.ndimage
 
     origin = np.asarray(lo, dtype=np.float64) - 2.0 * spacing
     shape = tuple(int(s) for s in np.ceil((np.asarray(hi) + 2.0 * spacing - origin) / spacing).astype(int) + 1)
     held = np.zeros(shape, dtype=bool)
     cover, exact = 0.0, np.full(shape, np.inf)
+    axes = [origin[k] + spacing * np.arange(shape[k]) for k in range(3)]
+    far = origin + spacing * (np.array(shape) - 1)
     for surface, to_world in surfaces:
-        if surface.class_name() == "Sphere":  # its distance itself
-            placed = to_world @ np.array(mi.traverse(surface)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
-            centre, radius = placed[:3, 3], float(np.linalg.norm(placed[:3, 0]))
-            axes = [origin[k] + spacing * np.arange(shape[k]) - centre[k] for k in range(3)]
-            x, y, z = np.meshgrid(*axes, indexing="ij", sparse=True)
-            exact = np.minimum(exact, np.abs(np.sqrt(x * x + y * y + z * z) - radius))
+        known = None if surface.is_mesh() and surface.class_name() != "Rectangle" else _exact_distance(
+            surface, to_world, axes)
+        if known is not None:  # its distance itself
+            exact = np.minimum(exact, known)
             continue
-        points, gap = _shape_points(surface, to_world, spacing / 2.0)
+        points, gap = _shape_points(surface, to_world, spacing / 2.0, origin, far)
         cover = max(cover, gap)
         node = np.rint((points - origin) / spacing).astype(np.int64)
         inside = np.all((node >= 0) & (node < np.array(shape)), axis=1)
@@ -342,7 +370,7 @@ def _channel_table(ratio, albedo, seed, count):
     import hashlib
 
     radii = np.asarray(RADII[:count]) * ratio
-    key = hashlib.blake2b(repr((radii.tolist(), albedo, TABLE_PATHS, MU_BINS, seed)).encode(), digest_size=12)
+    key = hashlib.blake2b(repr((FORMAT, radii.tolist(), albedo, TABLE_PATHS, MU_BINS, seed)).encode(), digest_size=12)
     kept = _kept(f"exits-{key.hexdigest()}.npz", lambda: dict(zip(("uncollided", "collided"), exit_table(
         radii, albedo, seed=seed))))
     return kept["uncollided"], kept["collided"]
@@ -409,11 +437,11 @@ class Jumps:
                 continue  # too thin to hold the least ball anywhere
             budget = MAX_CLEARANCE_NODES / len(objects)  # the objects' grids together
             spacing = max(0.25 * mfp, float(np.prod(hi - lo) / budget) ** (1.0 / 3.0))
-            surfaces = [(obj.shape, obj.to_world)]
-            for _, shape, instance in scene_surfaces(mi, scene):  # what lies inside its box: inclusions
+            surfaces = []
+            for _, shape, instance in scene_surfaces(mi, scene):  # every surface that reaches its box
                 to_world = instance_to_world(mi, instance)
                 box = world_bbox(shape, to_world)
-                if shape is not obj.shape and np.all(box[0] >= lo) and np.all(box[1] <= hi):
+                if np.all(box[1] >= lo - 2.0 * spacing) and np.all(box[0] <= hi + 2.0 * spacing):
                     surfaces.append((shape, to_world))
             nodes, origin, shape, deepest = clearance(surfaces, lo, hi, spacing)
             count = sum((kept + r) * mfp <= deepest for r in RADII)  # the radii that fit somewhere
@@ -436,9 +464,17 @@ class Jumps:
     def __bool__(self):
         return bool(self.balls)
 
+    @dr.syntax
     def fit(self, medium, p, active):
         """Per lane (``active`` in ``medium`` at ``p``): whether a ball fits, its radius (scene units) and its tables'
-        first index (that of channel 0)."""
+        first index (that of channel 0). A symbolic branch: a packet of lanes none of which asks skips it."""
+        n = dr.width(p)
+        fits, radius, index = dr.full(mi.Bool, False, n), dr.zeros(mi.Float, n), dr.zeros(mi.UInt32, n)
+        if active:
+            fits, radius, index = self._fit(medium, p, active)
+        return fits, radius, index
+
+    def _fit(self, medium, p, active):
         n = dr.width(p)
         fits, radius, index = dr.full(mi.Bool, False, n), dr.zeros(mi.Float, n), dr.zeros(mi.UInt32, n)
         for ball in self.balls:
@@ -455,19 +491,16 @@ class Jumps:
         return fits, radius, index
 
     @dr.syntax
-    def sample(self, medium, p, channel, sampler, active):
-        """Jumps from the scattering vertices ``p`` (``active`` lanes in ``medium``, hero ``channel``): ``(jumped,
-        exit, direction, p, f)``, the lanes where a ball fits (:meth:`fit`), the point and direction the walk leaves
-        it by, and Eq. J1's densities and contributions per channel (Color3f). A symbolic branch: a packet of lanes
-        none of which is asked skips it (its cost was 6-8 % of a walk's where no ball is ever reached)."""
-        n = dr.width(active)
-        jumped = dr.full(mi.Bool, False, n)
+    def sample(self, p, channel, sampler, fits, radius, index):
+        """Jumps from the scattering vertices ``p`` where a ball fits (:meth:`fit`; hero ``channel``): ``(exit,
+        direction, p, f)``, the point and direction the walk leaves the ball by, and Eq. J1's densities and
+        contributions per channel (Color3f). A symbolic branch, as :meth:`fit`."""
+        n = dr.width(fits)
         exit_point, direction = dr.zeros(mi.Point3f, n), dr.zeros(mi.Vector3f, n)
         pdf, f = dr.zeros(mi.Color3f, n), dr.zeros(mi.Color3f, n)
-        if active:
-            jumped, radius, index = self.fit(medium, p, active)
-            exit_point, direction, pdf, f = self._drawn(p, channel, sampler, jumped, radius, index)
-        return jumped, exit_point, direction, pdf, f
+        if fits:
+            exit_point, direction, pdf, f = self._drawn(p, channel, sampler, fits, radius, index)
+        return exit_point, direction, pdf, f
 
     def _drawn(self, p, channel, sampler, jumped, radius, index):
         hero = index + channel
@@ -488,6 +521,7 @@ class Jumps:
             f[c] = dr.select(uncollided, dr.gather(mi.Float, self.uncollided, at, jumped),
                              dr.gather(mi.Float, self.density, at * MU_BINS + b, jumped))
             pdf[c] = f[c] / total
+        f[dr.gather(mi.Float, self.total, hero, jumped) <= 0.0] = 0.0  # a hero that leaves no light: no estimate
         normal = mi.warp.square_to_uniform_sphere(sampler.next_2d(jumped))
         phi = 2.0 * dr.pi * sampler.next_1d(jumped)
         sin_theta = dr.safe_sqrt(1.0 - dr.square(mu))

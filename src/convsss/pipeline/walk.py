@@ -420,10 +420,14 @@ class RandomWalk(ShadowRays):
         if self.replayed is not None:
             replay_scattering(self.replayed, path.medium, mei, path.result, scatter)  # Eq. G3
         lit = scatter & (path.depth < self.max_depth)  # the vertex's light ends a path of depth + 1 segments
+        if self._jumps_taken:  # a jump's own light is the straight paths out of its ball
+            jumping = self.jumps.fit(path.medium, mei.p, scatter & (path.scatterings >= MIN_SCATTERINGS))
+            lit &= ~jumping[0]
         path = self._next_events(path, _interaction(mei), sampler, lit,
                                  lambda d: phase.eval_pdf(phase_ctx, mei, d, lit))
         path.ratios_nee = where(scatter, path.ratios, path.ratios_nee)
-        path, scatter = self._jump(path, mei, scatter, sampler)
+        if self._jumps_taken:
+            path, scatter = self._jump(path, mei, scatter, sampler, *jumping)
         wo, phase_weight, phase_pdf = phase.sample(phase_ctx, mei, sampler.next_1d(scatter),
                                                    sampler.next_2d(scatter), scatter)
         path.ray[scatter] = mei.spawn_ray(wo)
@@ -433,21 +437,25 @@ class RandomWalk(ShadowRays):
         path.ratios_nee = update(path.ratios_nee, 1.0, phase_weight * phase_pdf, scatter)
         return path
 
-    def _jump(self, path, mei, scatter, sampler):
-        """Deep enough, across a ball in one step (:mod:`.jumps`, Eq. J1) instead of the phase function's next
-        direction: ``(path, scatter)`` with the lanes that still take it. A path that leaves the object straight from
-        the ball finds the light it hits with its whole weight (no light was sampled where it came from)."""
-        if self.jumps is None or self.field is not None or self.differentiated or self.evaluated \
-                or self.replayed is not None:
-            return path, scatter
-        asked = scatter & (path.scatterings >= MIN_SCATTERINGS)
-        jumped, exit_point, direction, pdf, f = self.jumps.sample(path.medium, mei.p, path.channel, sampler, asked)
+    @property
+    def _jumps_taken(self):
+        """Whether walks jump (:mod:`.jumps`): not where the coefficients are a trial's or differentiated (a replayed
+        walk jumps as its radiance's pass does: a jump's weight holds none of the parameters it replays)."""
+        return self.jumps is not None and self.field is None and not self.differentiated and not self.evaluated
+
+    def _jump(self, path, mei, scatter, sampler, jumped, radius, index):
+        """Across a ball in one step where one fits (:meth:`.jumps.Jumps.fit`; :mod:`.jumps`, Eq. J1) instead of the
+        phase function's next direction: ``(path, scatter)`` with the lanes that still take it. A path that leaves
+        the object straight from the ball finds the light it hits with its whole weight (no light was sampled inside
+        it, nor at its centre)."""
+        exit_point, direction, pdf, f = self.jumps.sample(mei.p, path.channel, sampler, jumped, radius, index)
         path.ray[jumped] = mi.Ray3f(exit_point, direction, mei.time, mei.wavelengths)
         path.needs_intersection |= jumped
         path.ratios = update(path.ratios, pdf, f, jumped)  # Eq. J1 in Eq. W1's ratios
         path.ratios_nee = where(jumped, path.ratios, path.ratios_nee)
         path.specular_chain |= jumped
         path.after_scatter &= ~jumped
+        path.straight_out &= ~jumped
         path.scattered[jumped] = 0.0
         path.jumps[jumped] += 1
         return path, scatter & ~jumped
