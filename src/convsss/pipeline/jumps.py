@@ -18,23 +18,26 @@ light that leaves the ball at all. The hero channel ``h`` draws the exit: uncoll
 its contribution ``U_i`` or ``C_i(mu)`` (Eq. W1's ratios; the point's and the azimuth's densities are the same in
 every channel and cancel). Exact but for the table's noise and bins: the walk's light is the same, with fewer events.
 
-What a jump leaves out: the light sampled at the vertices inside the ball (next-event estimation). Where light is
-sampled inside the object, each of them is at least ``MARGIN`` mean free paths (in the channel of least extinction)
-below every surface, so its light is at most ``e^{-MARGIN}`` of a vertex's at the surface; the walks near the
-sphere's edge (about ``3 delta`` events per mean free path ``delta`` below it, the diffusion Green's function of a
-sphere) add up to about ``3 e^{-MARGIN}`` of one surface vertex's light per jump, below the table's noise. Where no
-light is sampled inside (:func:`margin`: a rough dielectric boundary, which stops every shadow ray; a smooth one
-under environments left to the paths that hit them) nothing is left out and the ball may reach the surface. A walk
-that leaves the object straight after a jump finds the light it hits with its whole weight: no light was sampled
-where it came from.
+What a jump leaves out: the light sampled at the vertices inside the ball and at its centre (next-event
+estimation; the centre's straight paths out of the ball are the jump's uncollided ones). A path that leaves the
+object straight after a jump finds the light it hits with its whole weight, so an area light or an environment is
+still found by the paths out of the ball; a delta light (point, spot, directional), which no path hits, loses what
+those vertices would have sampled. Where light is sampled inside the object, the ball keeps ``MARGIN`` mean free
+paths (in the channel of least extinction) inside every surface, so that each of its vertices' light is at most
+``e^{-MARGIN}`` of a vertex's at the surface; the walks near the sphere's edge (about ``3 delta`` events per mean
+free path ``delta`` below it, the diffusion Green's function of a sphere) add up to about ``3 e^{-MARGIN}`` of one
+surface vertex's light per jump, below the table's noise. Where no light is sampled inside (:func:`margin`: a rough
+dielectric boundary, which stops every shadow ray; a smooth one under environments left to the paths that hit
+them) nothing is left out and the ball may reach the surface.
 
 The ball's radius is the largest of :data:`RADII` mean free paths (of the channel of least extinction) that the
 object's clearance allows: a lower bound of the distance to every surface, read at the nearest node of a grid of
 the distance from each node to points that lie on the surfaces no further than ``spacing/2`` apart (a mesh's
-triangles subdivided; another shape's parametrization on a grid; a sphere's distance itself), less what the grid's
-nodes can hide (:func:`clearance_grid`). Jumps are taken in an object that is the only one of its medium (a
-homogeneous one of isotropic scattering; an instanced shape's medium is shared), closed, with no light but an
-environment within its box, and deep enough somewhere to hold the least ball; elsewhere the walk is as before.
+triangles subdivided; another shape's parametrization on a grid; a sphere's or a rectangle's distance itself), less
+what the grid's nodes can hide (:func:`clearance_grid`), over every surface that reaches the object's box. Jumps
+are taken in an object that is the only one of its medium (a homogeneous one of isotropic scattering; an instanced
+shape's medium is shared), closed, with no light but an environment within its box, and deep enough somewhere to
+hold the least ball; elsewhere the walk is as before.
 Measured (`auto`, 64² and 128², 64 spp, medians of 5 renders in one process, docs/benchmarks.md): the 40 mm potato
 bunny behind glass under a uniform environment 1.19-1.27 times as fast (events per path 2.53 -> 1.87); forced to
 walk (where `auto` keeps the transport), the 40 mm marble bunny behind glass under an area light 1.43, the 40 mm
