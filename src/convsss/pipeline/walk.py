@@ -66,6 +66,9 @@ estimator as Mitsuba's ``volpathmis`` (Miller, Georgiev and Jarosz 2019, spectra
   :attr:`~.params.RenderMode.transported`) is never entered: a path that meets it finds its light there as an
   emitter's, ``(1/pi) F_t M`` (paper Eq. 7, the hit recorded in the loop and its ``M`` looked up after it, as the
   surface path tracer does) and its single scattering (Eq. S2), and takes its boundary's reflection alone;
+* in ``auto``'s walks, deep inside an object of isotropic scattering, a **jump** across the largest ball that fits
+  (shell tracing, Eq. J1 of :mod:`.jumps`) takes the place of the vertex's light sampling and of the phase
+  function's next direction: the walk leaves the ball's sphere where and as a homogeneous sphere's exit table says;
 * **derivatives** with respect to the media's coefficients (:mod:`.derivatives`): each path carries its events'
   scores beside its ratios and each sample a Jacobian (Eq. G1, G2), or a replayed walk sends each event's score times
   the radiance still to come into Mitsuba's AD (Eq. G3).
