@@ -40,9 +40,9 @@ shape's medium is shared), closed, with no light but an environment within its b
 hold the least ball; elsewhere the walk is as before.
 Measured (`auto`, 64² and 128², 64 spp, medians of 5 renders in one process, docs/benchmarks.md): the 40 mm potato
 bunny behind glass under a uniform environment 1.17-1.27 times as fast (events per path 2.53 -> 1.87); forced to
-walk (where `auto` keeps the transport), the 40 mm marble bunny behind glass under an area light 1.43, the 40 mm
-and a 100 mm whole-milk bunny under point lights 1.27 and 1.69; where a ball fits but walks never reach it (the
-back-lit 40 mm skin1 bunny) 4-8 % slower.
+walk (where `auto` keeps the transport), the 40 mm marble bunny behind glass under an area light 1.37-1.43, the
+40 mm and a 100 mm whole-milk bunny under point lights 1.19-1.27 and 1.65-1.69; where a ball fits but walks never
+reach it (the back-lit 40 mm skin1 bunny) 4-10 % slower.
 """
 
 import math
