@@ -431,3 +431,47 @@ def test_a_path_in_an_objects_medium_outside_every_box_of_that_medium_ends_as_le
     sampler.seed(2, n)
     walk.trace(sampler, mi.Ray3f(dr.zeros(mi.Point3f, n), mi.warp.square_to_uniform_sphere(sampler.next_2d())), medium)
     assert walk.stats["leaked"] == 0 and walk.stats["events_per_path"] > 3.0
+
+
+@pytest.mark.parametrize("boundary, straight, sealed", [
+    ("roughdielectric", True, {"sky": True, "area": True, "lamp": True}),  # it stops every shadow ray
+    ("dielectric", True, {"sky": True, "area": False, "lamp": False}),  # auto: Eq. W5 takes all but a sky's
+    ("dielectric", False, {"sky": True, "area": True, "lamp": False}),  # volpathmis's estimator: a delta light's
+    ("null", True, {"sky": False, "area": False, "lamp": False}),
+])
+def test_no_shadow_ray_leaves_a_vertex_toward_a_light_its_boundary_stops(mi, boundary, straight, sealed):
+    """From a vertex inside a closed object, a shadow ray toward a light outside the object's box crosses its
+    boundary: a rough dielectric stops every one, a smooth one those it does not take straight (Eq. W4, W5), a null
+    one none. The walk casts none of those (they would bring no light: the means against volpathmis are the tests
+    above); a light inside the box (a point light near the centre) keeps its shadow ray, as does a surface."""
+    import drjit as dr
+
+    from convsss.pipeline.params import RenderMode
+    from convsss.pipeline.walk import RandomWalk
+
+    T = mi.ScalarTransform4f
+    scene = mi.load_dict({
+        "type": "scene", "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 8, "height": 8},
+                                    "to_world": T().look_at(origin=[0, 0, 8], target=[0, 0, 0], up=[0, 1, 0])},
+        "object": {"type": "sphere", "radius": 1.0, "bsdf": {"type": boundary},
+                   "interior": {"type": "homogeneous", "sigma_t": 4.0, "albedo": 0.9}},
+        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1.0] * 3}},
+        "area": {"type": "rectangle", "to_world": T().translate([0, 0, -4]),
+                 "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1.0] * 3}}},
+        "lamp": {"type": "point", "position": [0, 5, 0], "intensity": {"type": "rgb", "value": [10] * 3}},
+        "inner": {"type": "point", "position": [0, 0, 0.5], "intensity": {"type": "rgb", "value": [1] * 3}}})
+    integrator = mi.load_dict({"type": "convsss", "walk_depth": float("inf")})
+    integrator.prepare(scene, scene.sensors()[0], 0)
+    tracer = integrator.session.tracer
+    walk = RandomWalk(scene, tracer.objects, tracer.params, RenderMode(float("inf"), straight=straight))
+    medium = mi.MediumPtr([s for s in scene.shapes() if s.interior_medium() is not None][0].interior_medium())
+    sampler = mi.load_dict({"type": "independent"})
+    sampler.seed(1, 1)
+    for light in scene.emitters():
+        vertex = dr.zeros(mi.Interaction3f, 1)
+        vertex.p = mi.Point3f(0.0, 0.0, -0.5)
+        ds = light.sample_direction(vertex, sampler.next_2d(), True)[0]
+        kind = ("sky" if light.class_name() == "ConstantBackgroundEmitter" else "area" if light.get_shape() else
+                "lamp" if ds.p.y[0] > 1.0 else "inner")
+        assert bool(walk._sealed(vertex, medium, ds)[0]) == sealed.get(kind, False), kind
+        assert not walk._sealed(dr.zeros(mi.SurfaceInteraction3f, 1), medium, ds)[0]  # from a surface: cast

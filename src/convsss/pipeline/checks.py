@@ -14,7 +14,7 @@ from ..errors import ConvsssError
 from ..media.named import any_named_media, check_boundary, named_medium_of
 from .interiors import boundary_eta
 from .surface import has_vertices, mesh_arrays
-from .traversal import hit_indices, scene_surfaces, shape_index
+from .traversal import emitter_bounds, hit_indices, scene_surfaces, shape_index
 
 #: The object may span at least / at most this many mean free paths before the units look wrong (a 2 m panel of
 #: spectralon spans 4e4; a 40 mm bunny made 1000 times too large spans 1e5 in milk). It renders either way.
@@ -134,20 +134,15 @@ def check_span(obj, unit_mm):
 
 
 def check_lights_outside(mi, scene, objects, unit_mm):
-    """A one-line error for a point, spot or area light inside a closed translucent object: the diffusion model
-    lights an object through its surface from outside (it would render the object black, or ignore an area light).
-    Inside is decided by the parity of the object's surface crossings along a ray from the light (an area light's
-    shape: from the centre of its bounding box)."""
+    """A one-line error for a point, spot, projector or area light inside a closed translucent object: the diffusion
+    model lights an object through its surface from outside (it would render the object black, or ignore an area
+    light). Inside is decided by the parity of the object's surface crossings along a ray from the light (an area
+    light's shape: from the centre of its bounding box, :func:`~.traversal.emitter_bounds`)."""
     for emitter in scene.emitters():
-        params = mi.traverse(emitter)
-        if emitter.get_shape() is not None:
-            position = np.asarray(emitter.get_shape().bbox().center(), dtype=np.float64).reshape(-1)[:3]
-        elif "position" in params:
-            position = np.asarray(params["position"], dtype=np.float64).reshape(-1)[:3]
-        elif emitter.class_name() == "SpotLight" and "to_world" in params:
-            position = np.asarray(params["to_world"].matrix, dtype=np.float64).reshape(4, 4)[:3, 3]
-        else:
+        bounds = emitter_bounds(mi, emitter)
+        if bounds is None:
             continue
+        position = bounds.mean(axis=0)
         for obj in objects:
             lo, hi = obj.bbox_mm / unit_mm  # scene units, as the light's position
             if not (obj.closed and np.all(position >= lo) and np.all(position <= hi)):

@@ -53,8 +53,8 @@ import numpy as np
 
 from ..backend import import_mitsuba
 from ..jit import njit, prange
-from .interiors import phase_g
-from .traversal import instance_to_world, scene_surfaces, world_bbox
+from .interiors import medium_material, phase_g
+from .traversal import emitter_bounds, instance_to_world, scene_surfaces, world_bbox
 
 mi = import_mitsuba()
 
@@ -311,21 +311,16 @@ class _Ball:
     offset: int
 
 
-def _medium_of(obj):
-    """``(sigma_t, albedo)`` per scene unit of ``obj``'s interior where jumps hold there (a homogeneous medium of
-    isotropic scattering, a closed surface), else None."""
+def _medium_of(obj, unit_mm):
+    """``(sigma_t, albedo)`` per scene unit (``unit_mm`` mm) of ``obj``'s interior where jumps hold there (a
+    homogeneous medium of isotropic scattering, a closed surface), else None."""
     medium = obj.shape.interior_medium()
-    if obj.classes is not None or not obj.closed or medium.class_name() != "HomogeneousMedium":
+    if (obj.classes is not None or not obj.closed or medium.class_name() != "HomogeneousMedium"
+            or phase_g(mi.traverse(medium)) != 0.0):
         return None
-    params = mi.traverse(medium)
-    if phase_g(params) != 0.0:
-        return None
-    rgb = [np.broadcast_to(np.asarray(params[key], dtype=np.float64).reshape(-1), (3,))
-           for key in ("sigma_t.value.value", "albedo.value.value")]
-    scale = float(params["scale"]) if "scale" in params else 1.0
-    if np.min(rgb[0]) <= 0.0:
-        return None
-    return rgb[0] * scale, rgb[1]
+    material = medium_material(mi, medium, obj.eta, unit_mm, obj.name)  # g = 0: the reduced coefficients are its own
+    sigma_t = material.sigma_t_prime * unit_mm
+    return (sigma_t, material.sigma_s_prime / sigma_t) if np.min(sigma_t) > 0.0 else None
 
 
 _TABLES = {}
@@ -398,19 +393,8 @@ def margin(scene, obj, environments):
     alone; None (no jumps) where a light other than an environment lies within its bounding box."""
     lo, hi = world_bbox(obj.shape, obj.to_world)
     for emitter in scene.emitters():
-        if mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite):
-            continue
-        shape = emitter.get_shape()
-        if shape is not None:
-            near, far = world_bbox(shape, np.identity(4))
-        else:
-            params = mi.traverse(emitter)
-            if "position" in params:
-                near = np.asarray(params["position"], dtype=np.float64).reshape(-1)[:3]
-            else:
-                near = np.array(params["to_world"].matrix, dtype=np.float64).reshape(4, 4)[:3, 3]
-            far = near
-        if np.all(far >= lo) and np.all(near <= hi):
+        bounds = emitter_bounds(mi, emitter)
+        if bounds is not None and np.all(bounds[1] >= lo) and np.all(bounds[0] <= hi):
             return None
     if obj.boundary == "roughdielectric":
         return 0.0
@@ -421,15 +405,15 @@ def margin(scene, obj, environments):
 
 
 class Jumps:
-    """The jumps of the walks in ``objects`` of ``scene`` (module doc), the ``environments`` Eq. W5 solves given;
-    :meth:`fit` says where a ball fits, :meth:`sample` draws the jumps."""
+    """The jumps of the walks in ``objects`` of ``scene`` (module doc; ``unit_mm`` mm per scene unit), the
+    ``environments`` Eq. W5 solves given; :meth:`fit` says where a ball fits, :meth:`sample` draws the jumps."""
 
-    def __init__(self, scene, objects, environments=()):
+    def __init__(self, scene, objects, unit_mm, environments=()):
         media = [mi.MediumPtr(obj.shape.interior_medium()) for obj in objects]
         shared = {k for k, m in enumerate(media) if sum(bool(dr.all(m == other)) for other in media) > 1}
         self.balls, totals, uncollideds, collideds = [], [], [], []
         for k, obj in enumerate(objects):
-            found = None if k in shared else _medium_of(obj)
+            found = None if k in shared else _medium_of(obj, unit_mm)
             kept = None if found is None else margin(scene, obj, environments)
             if kept is None:
                 continue

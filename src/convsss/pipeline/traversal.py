@@ -124,6 +124,24 @@ def world_bbox(shape, to_world):
     return np.array([mapped[:, :3].min(axis=0), mapped[:, :3].max(axis=0)])
 
 
+def emitter_bounds(mi, emitter):
+    """(2, 3) world box of where ``emitter`` shines from, in scene units: an area light's shape's bounding box, a
+    point, spot or projector light's position (a box of no size); None for a light at infinity (an environment, a
+    directional light) or one of no known place."""
+    if mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite):
+        return None
+    if emitter.get_shape() is not None:
+        return world_bbox(emitter.get_shape(), np.identity(4))
+    params = mi.traverse(emitter)
+    if "position" in params:
+        position = np.asarray(params["position"], dtype=np.float64).reshape(-1)[:3]
+    elif "to_world" in params:
+        position = np.array(params["to_world"].matrix, dtype=np.float64).reshape(4, 4)[:3, 3]
+    else:
+        return None
+    return np.array([position, position])
+
+
 def world_area(shape, to_world):
     """World area of ``shape`` placed by ``to_world``: its own area times ``s^2`` for a similarity (a plain shape:
     ``s = 1``), else ``sum_i A_i`` over :data:`AREA_SAMPLES` samples of

@@ -201,7 +201,7 @@ class RandomWalk(ShadowRays):
         #: go to their end (not in the field's, nor in ``volpathmis``'s estimator); None: none.
         jumping = params.jumps == "on" and mode.straight and not mode.field
         walked = [obj for k, obj in enumerate(objects) if not (self.transported and self.transported[k])]
-        self.jumps = (Jumps(scene, walked, self.environments) or None) if jumping and walked else None
+        self.jumps = (Jumps(scene, walked, params.unit_mm, self.environments) or None) if jumping and walked else None
         #: Shadow rays take a homogeneous medium's transmittance whole (module doc), but in ``volpathmis``'s estimator
         #: and without path roulette (a fit's walks: its closed loop read 3.3 % off in mfp with it, 1.5 % without).
         self.analytic = not mode.plain and self.rr_depth < MAX_WALK
@@ -215,6 +215,16 @@ class RandomWalk(ShadowRays):
             grow = 1e-3 * (hi - lo).max()
             self.boxes.append((mi.MediumPtr(obj.shape.interior_medium()), mi.Point3f(*(lo - grow).tolist()),
                                mi.Point3f(*(hi + grow).tolist())))
+        #: ``(medium, rough)`` per medium all of whose objects are closed behind a dielectric boundary (``rough``: all
+        #: of them rough), which stops a shadow ray from a vertex inside toward a light outside their boxes
+        #: (:meth:`~.walk_shadows.ShadowRays._sealed`).
+        self.sealed = []
+        for medium, _, _ in self.boxes:
+            owners = [obj for obj, (other, _, _) in zip(objects, self.boxes) if dr.all(other == medium)]
+            if any(dr.all(medium == m) for m, _ in self.sealed):
+                continue
+            if all(obj.closed and obj.boundary != "null" for obj in owners):
+                self.sealed.append((medium, all(obj.boundary == "roughdielectric" for obj in owners)))
         #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.
         self.field = None
         #: ``(medium, sigma_t, sigma_s)`` of the homogeneous media whose paths are weighed by these coefficients

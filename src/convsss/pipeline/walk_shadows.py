@@ -100,7 +100,21 @@ class _Shadow:
 
 class ShadowRays:
     """Next-event estimation's shadow rays of a :class:`~.walk.RandomWalk` (which holds ``scene``, ``analytic``,
-    ``straight_through``, ``refracting``, ``classify`` and ``_evaluated``)."""
+    ``straight_through``, ``refracting``, ``sealed``, ``classify``, ``_outside`` and ``_evaluated``)."""
+
+    def _sealed(self, origin, medium, ds):
+        """Per lane, whether the light sample ``ds`` lies beyond the dielectric boundary around a scattering vertex
+        ``origin`` in ``medium`` that stops its shadow ray (:attr:`~.walk.RandomWalk.sealed`: a rough one always, a
+        smooth one where it does not take the light straight, :meth:`_straight`): the sample outside every box of
+        the closed objects of that medium, whose boundary the ray crosses on its way. No shadow ray is cast there: it
+        would bring no light (``volpathmis`` casts it)."""
+        straight = self._straight(ds)
+        sealed = dr.full(mi.Bool, False, dr.width(straight))
+        if isinstance(origin, mi.SurfaceInteraction3f):
+            return sealed
+        for sealed_medium, rough in self.sealed:
+            sealed |= (medium == sealed_medium) & (rough | ~straight)
+        return sealed & self._outside(medium, ds.p)
 
     @dr.syntax
     def _emitter(self, origin, medium, ratios, channel, sampler, active, light=None):
@@ -118,8 +132,11 @@ class ShadowRays:
             ds, weight = light.sample_direction(origin, sampler.next_2d(active), active)
         emitted = dr.select(ds.pdf == 0.0, 0.0, weight * ds.pdf)
         active = mi.Bool(active & (ds.pdf != 0.0))
-        ray = origin.spawn_ray_to(ds.p)
         medium = mi.MediumPtr(medium)
+        sealed = active & self._sealed(origin, medium, ds)
+        emitted[sealed] = 0.0
+        active &= ~sealed
+        ray = origin.spawn_ray_to(ds.p)
         n = dr.width(ray.maxt)
         ds, ray, emitted, refraction, si, intersect = self._refracted(origin, ds, ray, emitted, active)
         active &= ~refraction.tried | refraction.found  # no refracted path to the light: none of its light
