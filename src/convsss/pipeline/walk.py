@@ -413,6 +413,7 @@ class RandomWalk(ShadowRays):
         path.last_scatter[scatter] = _interaction(mei)
         path.specular_chain &= ~scatter
         path.after_scatter |= scatter
+        path.straight_out &= ~scatter  # a refraction out of an earlier vertex's object is no longer its last event
         path.ratios = update(path.ratios, null_probability, mei.sigma_n, spectral & null)
         path.ratios_nee = update(path.ratios_nee, 1.0, mei.sigma_n, spectral & null)
         path.ratios_nee = update(path.ratios_nee, 1.0, null_probability, grey & null)
