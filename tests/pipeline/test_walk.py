@@ -102,11 +102,17 @@ def test_a_heterogeneous_interior_is_volpathmis(mi, sphere_scene, tmp_path):
     _compare(mi, mi.load_dict(scene))
 
 
-def test_auto_walks_sample_each_emitter_and_keep_the_mean_of_volpathmis(mi, sphere_scene):
-    """auto's walks sample every emitter at each vertex (a hit weighs with that emitter's own density), where an
-    explicit inf chooses one as volpathmis does; behind a rough boundary (no Eq. W4) both are volpathmis's mean."""
-    scene = sphere_scene(material="skin1", radius=1.0, boundary="roughdielectric", res=RES, floor=True,
-                         emitters=_lights(mi, "area+environment", 1.0))
+@pytest.mark.parametrize("boundary, light", [
+    ("roughdielectric", "area+environment"),  # every vertex's shadow ray stopped: the floor's and the surfaces' count
+    pytest.param("null", "point+environment", marks=pytest.mark.slow),  # every vertex's reaches both lights
+    pytest.param("dielectric", "sphere+environment", marks=pytest.mark.slow),  # the sphere's by Eq. W5, not the sky's
+])
+def test_auto_walks_sample_each_emitter_and_keep_the_mean_of_volpathmis(mi, sphere_scene, boundary, light):
+    """auto's walks sample every emitter at a surface and at a path's first scattering vertex (a hit weighs with that
+    emitter's own density) and one the scene chooses at the later vertices (its choice's probability in the hit's
+    weight), where an explicit inf chooses one everywhere as volpathmis does: volpathmis's mean."""
+    scene = sphere_scene(material="skin1", radius=1.0, boundary=boundary, res=RES, floor=True,
+                         emitters=_lights(mi, light, 1.0))
     _compare(mi, mi.load_dict(scene), walk_depth="auto")
 
 

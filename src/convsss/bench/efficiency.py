@@ -22,7 +22,7 @@ import json
 import statistics
 import time
 
-#: The references' passes (samples per pixel each).
+#: The references' passes (samples per pixel each; the last one the rest).
 PASS_SPP = 256
 
 
@@ -60,10 +60,10 @@ def bench_efficiency(names, width=96, spp=32, seeds=12, reference_spp=1024):
         inside = mask > 0.5
         volpath = reference_integrator()
         references = []
+        shares = [PASS_SPP] * (reference_spp // PASS_SPP) + [reference_spp % PASS_SPP] * bool(reference_spp % PASS_SPP)
         for start in (1 << 20, 2 << 20):  # seeds apart from the renders'
-            passes = max(1, reference_spp // PASS_SPP)
-            references.append(sum(_timed(mi, dr, scene, volpath, PASS_SPP, start + k)[1] for k in range(passes))
-                              / passes)
+            references.append(sum(share * _timed(mi, dr, scene, volpath, share, start + k)[1]
+                                  for k, share in enumerate(shares)) / reference_spp)
         truth = references[0]
         noise = 0.5 * relative_mse(truth, references[1], mask)
         row = {"scene": name, "reference_noise": noise}

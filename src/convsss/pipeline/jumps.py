@@ -320,7 +320,7 @@ def _medium_of(obj, unit_mm):
         return None
     material = medium_material(mi, medium, obj.eta, unit_mm, obj.name)  # g = 0: the reduced coefficients are its own
     sigma_t = material.sigma_t_prime * unit_mm
-    return (sigma_t, material.sigma_s_prime / sigma_t) if np.min(sigma_t) > 0.0 else None
+    return (sigma_t, material.albedo_prime) if np.min(sigma_t) > 0.0 else None
 
 
 _TABLES = {}
@@ -390,10 +390,13 @@ def margin(scene, obj, environments):
     """The mean free paths kept between ``obj``'s balls and its surface (:data:`MARGIN`), 0 where no light is sampled
     inside it (module doc): behind a rough dielectric boundary, which stops shadow rays, and behind a smooth one
     under environments that Eq. W5 does not solve (``environments``: :func:`~.walk_shadows.solved_environments`)
-    alone; None (no jumps) where a light other than an environment lies within its bounding box."""
+    alone; None (no jumps) where a light other than an environment lies within its bounding box, or may (a light of
+    no known place: :func:`~.traversal.emitter_bounds`)."""
     lo, hi = world_bbox(obj.shape, obj.to_world)
     for emitter in scene.emitters():
         bounds = emitter_bounds(mi, emitter)
+        if bounds is None and not mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite):
+            return None  # a light of no known place could lie inside
         if bounds is not None and np.all(bounds[1] >= lo) and np.all(bounds[0] <= hi):
             return None
     if obj.boundary == "roughdielectric":

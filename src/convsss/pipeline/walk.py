@@ -132,7 +132,7 @@ class _Path:
     needs_intersection: object
     specular_chain: object
     after_scatter: object  # the last event was a scattering in a medium
-    chose_light: object  # the last vertex's light was one emitter the scene chose (a scattering vertex but the first)
+    chose_light: object  # the last vertex's light was one emitter the scene chose (scattering vertices but the first)
     straight_out: object  # and then the path refracted out through a smooth boundary
     scattered: object  # the direction the last scattering sent it (Eq. W5's weight where it hits a light)
     valid: object
@@ -224,11 +224,12 @@ class RandomWalk(ShadowRays):
         #: ``(medium, rough)`` per medium all of whose objects are closed behind a dielectric boundary (``rough``: all
         #: of them rough), which stops a shadow ray from a vertex inside toward a light outside their boxes
         #: (:meth:`~.walk_shadows.ShadowRays._sealed`).
-        self.sealed = []
-        for medium, _, _ in self.boxes:
+        self.sealed, media = [], []
+        for medium, _, _ in self.boxes:  # each medium once
+            if not any(dr.all(medium == m) for m in media):
+                media.append(medium)
+        for medium in media:
             owners = [obj for obj, (other, _, _) in zip(objects, self.boxes) if dr.all(other == medium)]
-            if any(dr.all(medium == m) for m, _ in self.sealed):
-                continue
             if all(obj.closed and obj.boundary != "null" for obj in owners):
                 self.sealed.append((medium, all(obj.boundary == "roughdielectric" for obj in owners)))
         #: The diffusion field walks end in (:class:`~.field.DiffusionField`), None: every walk goes to its end.

@@ -104,14 +104,14 @@ class ShadowRays:
 
     def _sealed(self, origin, medium, ds):
         """Per lane, whether the light sample ``ds`` lies beyond the dielectric boundary around a scattering vertex
-        ``origin`` in ``medium`` that stops its shadow ray (:attr:`~.walk.RandomWalk.sealed`: a rough one always, a
-        smooth one where it does not take the light straight, :meth:`_straight`): the sample outside every box of
-        the closed objects of that medium, whose boundary the ray crosses on its way. No shadow ray is cast there: it
-        would bring no light (``volpathmis`` casts it)."""
-        straight = self._straight(ds)
-        sealed = dr.full(mi.Bool, False, dr.width(straight))
-        if isinstance(origin, mi.SurfaceInteraction3f):
+        ``origin`` inside an object of ``medium`` that stops its shadow ray (:attr:`~.walk.RandomWalk.sealed`: a
+        rough one always, a smooth one where it does not take the light straight, :meth:`_straight`): the sample
+        outside every box of the closed objects of that medium, whose boundary the ray crosses on its way. No shadow
+        ray is cast there: it would bring no light (``volpathmis`` casts it)."""
+        sealed = dr.full(mi.Bool, False, dr.width(ds.pdf))
+        if isinstance(origin, mi.SurfaceInteraction3f) or not self.sealed:
             return sealed
+        straight = self._straight(ds)
         for sealed_medium, rough in self.sealed:
             sealed |= (medium == sealed_medium) & (rough | ~straight)
         return sealed & self._outside(medium, ds.p)
