@@ -53,6 +53,7 @@ import numpy as np
 
 from ..backend import import_mitsuba
 from ..jit import njit, prange
+from ..splitmix import isotropic, uniform
 from .interiors import medium_material, phase_g
 from .traversal import emitter_bounds, instance_to_world, scene_surfaces, world_bbox
 
@@ -75,27 +76,7 @@ MIN_SCATTERINGS = 4
 #: The most bytes :func:`table_folder` keeps (the oldest files go first), and the version of what it keeps (in every
 #: file's key: a change to :func:`exit_table` or :func:`clearance_grid` must change it).
 KEPT_BYTES = 256 << 20
-FORMAT = "jumps-2"
-
-
-@njit(cache=True)
-def _uniform(state):
-    """The next ``(state, u)`` of a splitmix64 stream, ``u`` uniform in [0, 1)."""
-    state = state + np.uint64(0x9E3779B97F4A7C15)
-    z = state
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    z = z ^ (z >> np.uint64(31))
-    return state, float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-
-
-@njit(cache=True)
-def _isotropic(state):
-    state, u = _uniform(state)
-    state, v = _uniform(state)
-    z = 1.0 - 2.0 * u
-    r = math.sqrt(max(1.0 - z * z, 0.0))
-    return state, r * math.cos(2.0 * math.pi * v), r * math.sin(2.0 * math.pi * v), z
+FORMAT = "jumps-3"
 
 
 @njit(parallel=True, cache=True)
@@ -107,11 +88,11 @@ def _exits(radii, albedo, paths, bins, seed):
     weight = np.zeros((paths, k_count))
     for i in prange(paths):
         state = np.uint64(seed) * np.uint64(0x632BE59BD9B4E019) + np.uint64(i) * np.uint64(0x9E3779B97F4A7C15)
-        state, dx, dy, dz = _isotropic(state)
+        state, dx, dy, dz = isotropic(state)
         x = y = z = 0.0
         w, k, collided = 1.0, 0, False
         while k < k_count:
-            state, u = _uniform(state)
+            state, u = uniform(state)
             t = -math.log(1.0 - u)
             b = x * dx + y * dy + z * dz
             c = x * x + y * y + z * z
@@ -132,11 +113,11 @@ def _exits(radii, albedo, paths, bins, seed):
             collided = True
             w *= albedo
             if w < 0.1:  # Russian roulette
-                state, u = _uniform(state)
+                state, u = uniform(state)
                 if u >= 0.5:
                     break
                 w *= 2.0
-            state, dx, dy, dz = _isotropic(state)
+            state, dx, dy, dz = isotropic(state)
     return where, weight
 
 

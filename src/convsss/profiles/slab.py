@@ -28,27 +28,13 @@ import numpy as np
 from ..errors import ConvsssError
 from ..fresnel import check_eta, diffuse_transmittance, fresnel_reflectance
 from ..jit import njit, prange
+from ..splitmix import isotropic, mix, uniform
 
 #: Fresnel table resolution in cos (the walk looks ``F_r`` up instead of carrying a second Fresnel formula).
 FRESNEL_TABLE = 4097
 #: Bins per decade of optical radius; the first bin edge past 0.
 BINS_PER_DECADE = 20
 R_FIRST = 1e-3
-
-
-@njit(inline="always", cache=True)
-def _mix(z):
-    """splitmix64's finalizer: a 64-bit hash."""
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    return z ^ (z >> np.uint64(31))
-
-
-@njit(inline="always", cache=True)
-def _next(state):
-    """splitmix64: returns (new state, uniform in (0, 1))."""
-    state = state + np.uint64(0x9E3779B97F4A7C15)
-    return state, (np.float64(_mix(state) >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
 
 
 @njit(parallel=True, fastmath=False, cache=True)
@@ -67,7 +53,7 @@ def _walk(photons, chunks, albedo, fresnel, depth_max, edges, seed, incidence):
         stop = min(photons, start + per_chunk)
         for i in range(start, stop):
             # each photon's stream starts at a hash of (seed, photon): streams are independent of the thread count
-            state = _mix(_mix(np.uint64(seed) + np.uint64(0x5851F42D4C957F2D)) + np.uint64(i))
+            state = mix(mix(np.uint64(seed) + np.uint64(0x5851F42D4C957F2D)) + np.uint64(i))
             x = y = z = 0.0
             ux = np.sqrt(max(0.0, 1.0 - incidence * incidence))
             uy = 0.0
@@ -75,7 +61,7 @@ def _walk(photons, chunks, albedo, fresnel, depth_max, edges, seed, incidence):
             w = 1.0
             scatters = 0
             while True:
-                state, u = _next(state)
+                state, u = uniform(state)
                 s = -np.log(u)
                 if uz < 0.0 and s >= z / -uz:  # reaches the boundary z = 0
                     t = z / -uz
@@ -85,7 +71,7 @@ def _walk(photons, chunks, albedo, fresnel, depth_max, edges, seed, incidence):
                     f = -uz * table_n
                     k = min(int(f), table_n - 1)
                     fr = fresnel[k] + (f - k) * (fresnel[k + 1] - fresnel[k])
-                    state, u = _next(state)
+                    state, u = uniform(state)
                     if u < fr:
                         uz = -uz
                         continue
@@ -110,17 +96,11 @@ def _walk(photons, chunks, albedo, fresnel, depth_max, edges, seed, incidence):
                 w *= albedo
                 scatters += 1
                 if w < 0.01:
-                    state, u = _next(state)
+                    state, u = uniform(state)
                     if u >= 0.1:
                         break
                     w *= 10.0
-                state, u = _next(state)
-                uz = 1.0 - 2.0 * u
-                state, u = _next(state)
-                phi = 2.0 * np.pi * u
-                sin_t = np.sqrt(max(0.0, 1.0 - uz * uz))
-                ux = sin_t * np.cos(phi)
-                uy = sin_t * np.sin(phi)
+                state, ux, uy, uz = isotropic(state)
     return hist, lost
 
 
