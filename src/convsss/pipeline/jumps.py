@@ -320,8 +320,8 @@ def _kept(name, make):
     """The arrays ``make()`` returns (a dict of name: array), read from :func:`table_folder`'s file ``name`` where an
     earlier process made them, else made and written there (whole, or not at all: a read-only home makes them
     again next time)."""
-    import os
-    import tempfile
+    from ..errors import ConvsssError
+    from ..files import atomic_write
 
     path = table_folder() / name
     try:
@@ -335,10 +335,8 @@ def _kept(name, make):
         files = sorted(path.parent.glob("*.npz"), key=lambda f: f.stat().st_mtime)
         while files and sum(f.stat().st_size for f in files) > KEPT_BYTES:  # the oldest go first
             files.pop(0).unlink(missing_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as f:
-            np.savez(f, **made)
-        os.replace(f.name, path)
-    except OSError:
+        atomic_write(path, lambda tmp: np.savez(tmp, **made))
+    except (OSError, ConvsssError):  # a read-only home: made again next time
         pass
     return made
 
