@@ -477,11 +477,7 @@ class Jumps:
             mi.Float, self.uncollided, hero, jumped)
         u = sampler.next_1d(jumped)
         first = hero * MU_BINS
-        b = dr.zeros(mi.UInt32, dr.width(p))
-        step = MU_BINS // 2
-        while step >= 1:  # the first bin whose cumulative share exceeds u
-            b = dr.select(dr.gather(mi.Float, self.cdf, first + b + step - 1, jumped) <= u, b + step, b)
-            step //= 2
+        b = mi.UInt32(dr.binary_search(0, MU_BINS - 1, lambda i: dr.gather(mi.Float, self.cdf, first + i, jumped) <= u))
         mu = dr.select(uncollided, 1.0, (mi.Float(b) + sampler.next_1d(jumped)) / MU_BINS)
         pdf, f = dr.zeros(mi.Color3f, dr.width(p)), dr.zeros(mi.Color3f, dr.width(p))
         for c in range(3):  # Eq. J1 in each channel: density U_c / T_c or C_c(mu) / T_c, contribution U_c or C_c(mu)
