@@ -489,7 +489,6 @@ class RandomWalk(ShadowRays):
         path.ratios_nee = where(jumped, path.ratios, path.ratios_nee)
         path.specular_chain |= jumped
         path.after_scatter &= ~jumped
-        path.straight_out &= ~jumped
         path.scattered[jumped] = 0.0
         path.jumps[jumped] += 1
         return path, scatter & ~jumped
