@@ -75,8 +75,8 @@ def test_exitance_is_what_the_sphere_pixels_are_made_of(mi, sphere_scene, monkey
     if not screen:
         monkeypatch.setattr(ScreenExitance, "_projection_agrees", lambda *args: False)
     sphere = {"material": "wholemilk", "radius": 10.0, "floor": True, "res": 32, "spp": 2}
-    scene, image = _render(mi, sphere_scene(**sphere, integrator={
-        "aovs": "exitance,mask,normal", "incidence": "normal", "single_scattering": "profile"}))
+    settings = {"incidence": "normal", "single_scattering": "profile"}
+    scene, image = _render(mi, sphere_scene(**sphere, integrator={"aovs": "exitance,mask,normal", **settings}))
     assert scene.integrator().stats["screen_exitance"]["usable"] == screen
     aov = _layers(image, ["exitance.R", "exitance.G", "exitance.B", "mask.Y", "normal.X", "normal.Y", "normal.Z"])
     normal = np.stack([aov[f"normal.{c}"] for c in "XYZ"], axis=-1)
@@ -87,7 +87,7 @@ def test_exitance_is_what_the_sphere_pixels_are_made_of(mi, sphere_scene, monkey
     assert covered.sum() > 100 and np.all(exitance[covered] > 0)
     np.testing.assert_allclose(np.pi * image[covered][:, :3], exitance[covered], rtol=1e-5)
     np.testing.assert_array_equal(exitance[aov["mask.Y"] == 0], 0.0)
-    plain, _ = _render(mi, sphere_scene(**sphere))  # the AOV asked the transports nothing more
+    plain, _ = _render(mi, sphere_scene(**sphere, integrator=settings))  # the AOVs asked the transports nothing more
     assert scene.integrator().stats["exitance_lookups"] == plain.integrator().stats["exitance_lookups"]
 
 

@@ -9,7 +9,8 @@ import pytest
 import convsss
 from convsss.bench.gradients import CASES, difference, gradient, scene_dict
 from convsss.errors import ConvsssError
-from convsss.pipeline.derivatives import NOT_WALKED, camera_samples
+from convsss.pipeline.derivatives import NOT_WALKED
+from convsss.pipeline.film import camera_samples
 
 RES = 12
 
@@ -52,7 +53,7 @@ def test_the_walks_jacobian_is_the_derivative_of_its_own_estimate(mi, boundary, 
     sigma_s = sigma_t * np.array(albedo)
 
     def radiance(seed=5, spp=16, jacobian=False):
-        sampler, ray, _, _ = camera_samples(scene, sensor, seed, spp)
+        sampler, ray, _, _ = camera_samples(sensor, seed, spp)
         return walk.trace_derivatives(sampler, ray) if jacobian else walk.trace(sampler, ray)
 
     walk.differentiate([medium])
@@ -186,7 +187,7 @@ def test_roulette_keeps_the_estimate_and_its_derivatives(mi):
         walk.differentiate([scene.shapes()[0].interior_medium()])
         per_seed = []
         for seed in range(8):
-            sampler, ray, _, _ = camera_samples(scene, sensor, seed, 256)
+            sampler, ray, _, _ = camera_samples(sensor, seed, 256)
             per_seed.append(np.array(walk.trace_derivatives(sampler, ray)[2][1], dtype=np.float64).mean(axis=1))
         means.append((np.mean(per_seed, axis=0), np.std(per_seed, axis=0) / np.sqrt(len(per_seed))))
     (a, a_error), (b, b_error) = means
@@ -236,7 +237,7 @@ def test_an_albedo_grid_s_gradient_is_the_derivative_of_the_walk(mi):
     def total(values):
         params[key] = mi.TensorXf(values.astype(np.float32))
         params.update()
-        sampler, ray, _, _ = camera_samples(scene, sensor, seed, spp)
+        sampler, ray, _, _ = camera_samples(sensor, seed, spp)
         return float(np.array(walk.trace(sampler, ray)[0], dtype=np.float64).sum()) / spp  # a pixel: its samples' mean
 
     h = 1e-3

@@ -48,6 +48,7 @@ import numpy as np
 
 from ..backend import import_mitsuba
 from ..errors import ConvsssError
+from .film import camera_samples
 from .parts import pass_seed, samples_per_pixel, shares
 
 mi = import_mitsuba()
@@ -202,34 +203,11 @@ def _coefficients(medium):
     return sigma_s, sigma_t
 
 
-# --- the camera's samples and the film ---------------------------------------------------------------------------
-def camera_samples(scene, sensor, seed, spp):
-    """``spp`` camera samples per pixel of ``sensor``'s film (its crop, and its border where it samples one), drawn
-    with seed ``seed``: ``(sampler, rays, weights, film positions)``, the sampler to go on drawing from."""
-    film = sensor.film()
-    size = film.crop_size()
-    border = film.rfilter().border_size() if film.sample_border() else 0
-    size += 2 * border
-    sampler = sensor.sampler().clone()
-    sampler.set_sample_count(spp)
-    sampler.set_samples_per_wavefront(spp)
-    sampler.seed(seed, dr.prod(size) * spp)
-    index = dr.arange(mi.UInt32, dr.prod(size) * spp) // spp
-    pixel = mi.Vector2i(mi.Int32(index % size[0]), mi.Int32(index // size[0])) - border
-    pixel += mi.Vector2i(film.crop_offset())
-    position = mi.Vector2f(pixel) + sampler.next_2d()
-    scale = dr.rcp(mi.ScalarVector2f(film.crop_size()))
-    offset = -mi.ScalarVector2f(film.crop_offset()) * scale
-    aperture = sampler.next_2d() if sensor.needs_aperture_sample() else mi.Vector2f(0.5)
-    time = sensor.shutter_open() + sampler.next_1d() * sensor.shutter_open_time()
-    ray, weight = sensor.sample_ray_differential(time, 0.5, dr.fma(position, scale, offset), aperture)
-    splat = mi.Vector2f(pixel) if film.rfilter().is_box_filter() else position
-    return sampler, ray, weight, splat
-
-
+# --- the film -----------------------------------------------------------------------------------------------------
 def _splat(film, channels, position, value):
     """The film's image of per-sample ``value`` (Color3f) splatted at ``position`` (its AOVs 0); the film is left
-    empty for the next."""
+    empty for the next. Mitsuba's ``ImageBlock.put``, which Dr.Jit differentiates in reverse (:func:`_adjoint`), where
+    :func:`.film.splat`'s loop has no reverse derivative: its sums' last bits vary with the threads."""
     block = film.create_block()
     n = dr.width(value)
     alpha = [dr.ones(mi.Float, n)] if mi.has_flag(film.flags(), mi.FilmFlags.Alpha) else []
@@ -283,7 +261,7 @@ def _parts(integrator, scene, sensor, seed, spp, walk, adjoint_of=None):
     film.prepare(integrator.aov_names())
     for k, share in enumerate(shares(spp, most=max(1, LANES // pixels))):
         with dr.suspend_grad():
-            sampler, ray, weight, position = camera_samples(scene, sensor, pass_seed(seed, k), share)
+            sampler, ray, weight, position = camera_samples(sensor, pass_seed(seed, k), share)
             adjoint = None if adjoint_of is None else adjoint_of(film, position, weight) * (share / spp)
             if walk.replayed is not None:
                 replay, walk.replayed = walk.replayed, None

@@ -2,8 +2,10 @@
 
 A :class:`ConvsssIntegrator` holds a :class:`~.session.RenderSession`, which runs the render's stages (samples,
 irradiance, indirect, transport, screen: :data:`~.session.STAGES`) and keeps what they built; the plugin reads its
-parameters (:mod:`.params`), hands Mitsuba's render loop the session's path tracer (:class:`.path_tracer.PathTracer`)
-so the film, its reconstruction filter, crop window, sampler and sample count behave as for any Mitsuba integrator,
+parameters (:mod:`.params`), shades the camera's samples with the session's path tracer
+(:class:`.path_tracer.PathTracer`) through the film (:mod:`.film`: Mitsuba's render loop, step for step, with a
+reconstruction that gives the same bits on any number of threads), so the film, its reconstruction filter, crop
+window, sampler and sample count behave as for any Mitsuba integrator,
 and renders one process's renders one at a time. Per-stage seconds and everything a user needs to judge the run are
 in :attr:`ConvsssIntegrator.stats`.
 """
@@ -16,12 +18,13 @@ import warnings
 import drjit as dr
 import numpy as np
 
-from ..backend import load_mitsuba, ordered_kernels
+from ..backend import load_mitsuba
 from ..errors import ConvsssError
 from ..media.named import register_medium
 from ..signals import mitsuba_render
 from ..timing import StageTimer
 from . import derivatives
+from . import film as films
 from .params import (
     IgnoredParameterWarning,
     RenderParams,
@@ -30,7 +33,7 @@ from .params import (
     parse_aovs,
     plugin_parameters,
 )
-from .parts import as_seed, render_passes, samples_per_pixel, shade_in_parts
+from .parts import as_seed, render_passes, samples_per_pixel
 from .plan import check_film
 from .session import RenderSession
 
@@ -47,7 +50,7 @@ WALK_LANES = 1 << 20
 
 
 def _one_at_a_time(method):
-    """``method`` under :data:`RENDER_LOCK` (re-entrant: Mitsuba's loop calls back into the integrator)."""
+    """``method`` under :data:`RENDER_LOCK` (re-entrant: a render calls back into the integrator)."""
 
     @functools.wraps(method)
     def serialized(*args, **kwargs):
@@ -99,8 +102,6 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         self.samples_per_pass = int(props["samples_per_pass"]) if "samples_per_pass" in props else -1
         #: Optional callable ``progress(stage)`` told when a stage starts (the command line's progress display).
         self.progress = None
-        self._nested = False
-        self._threads = 1
 
     def to_string(self):
         return f"ConvsssIntegrator[{', '.join(f'{k}={v!r}' for k, v in self.params.to_dict().items())}]"
@@ -201,8 +202,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
     # --- Mitsuba's interface ------------------------------------------------------------------------------------------
     @_one_at_a_time
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
-        if self._nested:  # Mitsuba's own loop, called from below: let it run
-            return mi.SamplingIntegrator.render(self, scene, sensor, seed, spp, develop, evaluate)
+        """Mitsuba's ``render``: the image (H, W, channels), its parts evaluated as they are drawn (``evaluate`` is
+        Mitsuba's and has no effect)."""
         check_render_call(scene, sensor, seed, spp)
         if isinstance(sensor, int):
             sensor = scene.sensors()[sensor]
@@ -220,7 +221,7 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
                 return render_passes(session, scene, sensor, as_seed(seed), spp_used,
                                              lambda share, own: self.render_prepared(spp=share, seed=own))
             reused = session.reuse(scene, sensor, as_seed(seed))
-            image = self.render_prepared(spp=spp, seed=seed, develop=develop, evaluate=evaluate)
+            image = self.render_prepared(spp=spp, seed=seed, develop=develop)
             self.stats["reused"] = reused
             return image
         finally:  # a render keeps its samples and transports only for a prepared scene (prepare, render_prepared)
@@ -247,9 +248,9 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         derivatives.render_backward(self, scene, params, grad_in, sensor, as_seed(seed), spp)
 
     @_one_at_a_time
-    def render_prepared(self, spp=0, seed=None, develop=True, evaluate=True):
+    def render_prepared(self, spp=0, seed=None, develop=True):
         """The shading stage alone: shade the camera rays of the last :meth:`prepare` (or :meth:`retransport`) through
-        Mitsuba's render loop, keeping the prepared state, so that an edit can rebuild what it changed and shade
+        the film (:mod:`.film`), keeping the prepared state, so that an edit can rebuild what it changed and shade
         again. ``seed`` defaults to the prepared one. Returns the image as :meth:`render` does."""
         state, tracer = self.prepared, self.session.tracer
         if state is None or tracer is None:
@@ -263,16 +264,13 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         timer = StageTimer(sync=dr.sync_thread)
         if tracer.walk is not None:
             tracer.walk.reset()
-        self._nested = True
         try:
-            # Mitsuba's film kernel scatter-adds each sample to every pixel its reconstruction filter covers: it runs
-            # on one thread, in lane order, so the image is bit-identical whatever the thread count; the shading
-            # (sample) runs on all threads.
-            with timer("shading"), mitsuba_render(), ordered_kernels() as self._threads:
-                image = self._shade(scene, sensor, seed, spp_used, develop, evaluate, tracer.walk is not None)
-        finally:
-            self._nested = False
-        if self.should_stop():  # Mitsuba's SIGINT handler cancelled the render: no partial image leaves here
+            with timer("shading"), mitsuba_render():
+                image = self._shade(scene, sensor, seed, spp_used, develop, tracer.walk is not None)
+        except KeyboardInterrupt:  # no partial image, nor a walk stopped midway, leaves here
+            self.session.tracer = None
+            raise
+        if self.should_stop():  # cancelled (Integrator.cancel) between parts: no partial image leaves here
             self.session.tracer = None
             raise KeyboardInterrupt
         self.stats["seconds"].update(timer)
@@ -284,26 +282,23 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
             self.stats["walk"] = tracer.walk.stats
         return image
 
-    def _shade(self, scene, sensor, seed, spp, develop, evaluate, walks):
-        """Mitsuba's render loop over the camera rays; with random ``walks`` (one kernel each, as long as its
-        longest walk) in chunks of about :data:`WALK_LANES` paths, each of its own seed (:func:`~.parts.pass_seed`)
-        so that Ctrl-C stops between them: the image is their mean."""
-        chunk = max(1, WALK_LANES // math.prod(sensor.film().crop_size())) if walks and develop else spp
-        if chunk >= spp:
-            image = mi.SamplingIntegrator.render(self, scene, sensor, seed, spp, develop, evaluate)
-            dr.eval(image)
-            return image
-        return shade_in_parts(lambda own, share: mi.SamplingIntegrator.render(self, scene, sensor, own, share, develop,
-                                                                              evaluate), spp, chunk, seed,
-                              self.should_stop)
+    def _shade(self, scene, sensor, seed, spp, develop, walks):
+        """The camera rays shaded through the film (:func:`.film.render`): with random ``walks`` (one kernel each, as
+        long as its longest walk) in parts of about :data:`WALK_LANES` paths, each of its own seed, so that Ctrl-C
+        stops between them; in parts of Mitsuba's ``samples_per_pass`` where it is set."""
+        film = sensor.film()
+        film.prepare(self.aov_names())
+        most = max(1, WALK_LANES // math.prod(films.sampled_extent(film)[0])) if walks else spp
+        if self.samples_per_pass > 0:
+            most = min(most, self.samples_per_pass)
+        return films.render(lambda sampler, rays: self.sample(scene, sampler, rays), sensor, seed,
+                            spp, most, self.should_stop, develop)
 
     def sample(self, scene, sampler, ray, medium=None, active=True):
         session = self.session
         if session.tracer is None or session.tracer.scene is not scene:
             # Called by another integrator's loop (e.g. Mitsuba's `aov`) without our render(): first sensor.
             session.prepare(scene, scene.sensors()[0], 0)
-        if self._nested:  # all threads for the shading, then one again for Mitsuba's film kernel (see render)
-            dr.set_thread_count(self._threads)
         # Mitsuba's camera rays hold the film's size as literals: evaluated apart, the strategy's kernel is the same
         # at any image size (a warm kernel cache serves it).
         dr.make_opaque(ray)
@@ -312,9 +307,6 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         else:  # nothing is lit: black, the first hits' mask alone (the walk's loops broke on it, issue 62)
             radiance, valid = dr.zeros(mi.Color3f, dr.width(ray.o)), scene.ray_intersect(ray).is_valid()
         aovs = session.aovs(ray)
-        if self._nested:
-            dr.eval(radiance, valid, aovs)
-            dr.set_thread_count(1)
         return radiance, valid, aovs
 
 
