@@ -8,7 +8,7 @@ Per scene, at the same size and samples per pixel:
    most 0.95; the walk's its weight over :data:`~convsss.pipeline.walk.ROULETTE_WEIGHT`, at most 1) and both
    without roulette (``rr_depth`` 2^30), one untimed render each first (Dr.Jit compiles), then ``runs`` renders of
    distinct seeds; medians. The last default convsss render's Dr.Jit kernel history splits its time into its
-   kernels' (the walk's, one per chunk of paths, Mitsuba's film on one thread, the camera rays) and the rest
+   kernels' (the walk's, one per chunk of paths, the film's gather, the camera rays) and the rest
    (Python between kernels, launches);
 2. **per command**, fresh processes on the scene written to a file: ``convsss render --walk-depth inf``, ``convsss
    render`` (the default, ``auto``) and Mitsuba's own ``mitsuba`` on the same file, one untimed run of each first,

@@ -2,15 +2,14 @@
 kernels, one home for the render's machinery (issue 59).
 
 A render of ``spp`` samples per pixel is drawn in parts (the passes of ``passes``, :func:`render_passes`; the walk's
-kernels of :data:`~.integrator.WALK_LANES` paths, :func:`shade_in_parts`; ``convsss reference``'s passes of
+kernels of :data:`~.integrator.WALK_LANES` paths, :func:`.film.render`; ``convsss reference``'s passes of
 ``pass_spp``), each with its share of the samples (:func:`shares`) and its own seed (:func:`pass_seed`); their mean,
-weighted by the shares, is the image. Ctrl-C stops between parts.
+weighted by the shares, is the image (the film's parts add their filter weights too). Ctrl-C stops between parts.
 """
 
 import hashlib
 import time
 
-import drjit as dr
 import numpy as np
 
 
@@ -39,20 +38,6 @@ def shares(spp, parts=None, most=None):
         parts = max(1, min(int(parts), int(spp)))
         return [spp // parts + (k < spp % parts) for k in range(parts)]
     return [min(int(most), spp - done) for done in range(0, spp, int(most))]
-
-
-def shade_in_parts(render, spp, most, seed, stop):
-    """``render(seed, spp)`` (Mitsuba's render loop, a Dr.Jit image) in parts of at most ``most`` samples per pixel,
-    part ``k`` of seed :func:`pass_seed` ``(seed, k)``, until ``stop()``: their mean, weighted by their shares."""
-    total, done = None, 0
-    for k, share in enumerate(shares(spp, most=most)):
-        if stop():
-            break
-        part = render(pass_seed(seed, k), share)
-        total = part * share if total is None else total + part * share
-        dr.eval(total)
-        done += share
-    return total / done
 
 
 def render_passes(session, scene, sensor, seed, spp, shade):
