@@ -108,12 +108,12 @@ def splat(film, position, values, spp):
 
 def render(sample, sensor, seed, spp, most, stop, develop=True):
     """Mitsuba's ``SamplingIntegrator.render`` of ``sample(sampler, rays)`` (``(radiance, valid, aovs)``) through
-    ``sensor``'s film, in parts of at most ``most`` samples per pixel, part ``k`` drawn with seed
+    ``sensor``'s film, in as few parts of at most ``most`` samples per pixel as may be, part ``k`` drawn with seed
     :func:`~.parts.pass_seed` ``(seed, k)``, each added to the film (its weights too: the parts' image is the one of
     all their samples) and evaluated before the next, until ``stop()``. Returns the developed image, or an empty
     tensor with the film holding it when not ``develop``."""
     film = sensor.film()
-    for k, share in enumerate(shares(spp, most=most)):
+    for k, share in enumerate(shares(spp, parts=-(-spp // most))):  # as few as may be, of equal size
         if stop():
             break
         sampler, rays, weight, position = camera_samples(sensor, pass_seed(seed, k), share)

@@ -46,7 +46,7 @@ VARIANT = mi.variant()
 #: Dr.Jit are shared, so a second thread waits for the first (two threads rendering one scene at once failed).
 RENDER_LOCK = threading.RLock()
 #: Camera paths per kernel of random walks (:meth:`ConvsssIntegrator._shade`): Ctrl-C waits for at most one.
-WALK_LANES = 1 << 20
+WALK_LANES = 1 << 21
 
 
 def _one_at_a_time(method):

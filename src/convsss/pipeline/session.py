@@ -216,7 +216,7 @@ class RenderSession:
         """Stages 1-5 for ``sensor``; ``survey``: a :meth:`survey` of the same scene, sensor and parameters to reuse
         (the passes of one render share it). Returns the path tracer, its transports attached."""
         asked = self.params.to_dict()
-        fingerprint = scene_fingerprint(scene, sensor)
+        fingerprint = scene_fingerprint(scene, sensor) if self.keep else None  # only a kept state is reused
         timer, stage = self._timed()
         with stage("samples"):
             objects, frame, seen, plan = survey if survey is not None else self.survey(scene, sensor)
@@ -278,10 +278,10 @@ class RenderSession:
         objects' depth, not the crop: :meth:`~.plan.SamplingPlan.draws_like`), keeps the samples and transports: the
         samples cover each object's whole surface. Another seed keeps the survey alone."""
         state = self.prepared
-        fingerprint = scene_fingerprint(scene, sensor)
-        same = (state is not None and self.keep and state.scene is scene and state.sensor is sensor
-                and state.params == self.params.to_dict() and state.fingerprint[0] == fingerprint[0])
-        if not same:
+        kept = (state is not None and self.keep and state.scene is scene and state.sensor is sensor
+                and state.params == self.params.to_dict())
+        fingerprint = scene_fingerprint(scene, sensor) if kept else None
+        if not kept or state.fingerprint[0] != fingerprint[0]:
             self.prepare(scene, sensor, seed)
             return []
         if state.fingerprint[1] == fingerprint[1]:
