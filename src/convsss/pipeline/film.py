@@ -100,6 +100,7 @@ def splat(film, position, values, spp):
     state = (mi.UInt32(0), *[dr.zeros(mi.Float, dr.width(pixel)) for _ in values])
     sums = dr.while_loop(state, lambda s, *_: s < spp, body, labels=("s", *[f"c{c}" for c in range(len(values))]),
                          label="convsss film")[1:]
+    dr.eval(sums)  # one kernel for every channel (each scatter below would launch the loop again)
     tensor = dr.zeros(mi.Float, dr.width(pixel) * len(values))
     for c, total in enumerate(sums):
         dr.scatter(tensor, total, pixel * len(values) + c)
