@@ -7,8 +7,8 @@ from convsss.bench.efficiency import bench_efficiency, efficiency_table, main
 
 @pytest.mark.slow
 def test_a_tiny_run_weighs_both_estimators_against_the_references():
-    (row,) = bench_efficiency(("milk4",), width=12, spp=2, seeds=2, reference_spp=64)
-    assert row["scene"] == "milk4" and row["reference_noise"] > 0
+    (row,) = bench_efficiency(("milk4",), width=12, spp=2, seeds=2, reference_spp=64, walk_depth=float("inf"))
+    assert row["scene"] == "milk4" and row["walk_depth"] == "inf" and row["reference_noise"] > 0
     for label in ("convsss", "volpathmis"):
         r = row[label]
         assert r["seconds"] > 0 and len(r["mean_ratio"]) == 3
@@ -27,3 +27,7 @@ def test_an_unknown_scene_is_one_line_and_exit_code_2(capsys, tmp_path):
     with pytest.raises(SystemExit) as stop:
         main(["milk4", "--seeds", "0"])
     assert stop.value.code == 2
+    for depth in ("deep", "-1"):
+        with pytest.raises(SystemExit) as stop:
+            main(["milk4", "--walk-depth", depth])
+        assert stop.value.code == 2 and depth in capsys.readouterr().err

@@ -4,17 +4,18 @@ Per scene (a ``bench walk`` or ``bench volpath`` scene), at one size and spp:
 
 1. two ``volpathmis`` references of ``reference_spp`` (no roulette; seeds apart): the first is the truth, half the
    relative MSE between them its own noise;
-2. ``convsss`` (its defaults: ``auto``) and ``volpathmis`` (no roulette, unbounded paths), one untimed render each
-   first (Dr.Jit compiles), then ``seeds`` renders of distinct seeds: the median seconds of a render (its image
-   evaluated), the mean relative MSE over the object's pixels less the reference's noise, and the efficiency
-   ``1 / (relative MSE x seconds)``.
+2. ``convsss`` (its defaults: ``auto``; or at another ``walk_depth``) and ``volpathmis`` (no roulette, unbounded
+   paths), one untimed render each first (Dr.Jit compiles), then ``seeds`` renders of distinct seeds: the median
+   seconds of a render (its image evaluated), the mean relative MSE over the object's pixels less the reference's
+   noise, and the efficiency ``1 / (relative MSE x seconds)``.
 
 A render's relative MSE is dominated by its rarest heavy paths: one seed says little, twelve say it within about 10 %.
 The command's time (start, scene loading) is ``bench walk``'s and ``bench cost``'s; this is the estimator's. To
 compare two versions of convsss, run this module under each (``PYTHONPATH=that/src``) on the same machine, back to
 back.
 
-    python -m convsss.bench.efficiency [--width W] [--spp S] [--seeds N] [--reference-spp R] [-o FILE] SCENE...
+    python -m convsss.bench.efficiency [--width W] [--spp S] [--seeds N] [--reference-spp R] [--walk-depth D]
+                                       [-o FILE] SCENE...
 """
 
 import argparse
@@ -37,9 +38,10 @@ def _timed(mi, dr, scene, integrator, spp, seed):
     return time.perf_counter() - start, np.array(image, dtype=np.float64)[..., :3]
 
 
-def bench_efficiency(names, width=96, spp=32, seeds=12, reference_spp=1024):
-    """One row per scene: ``{scene, reference_noise, convsss: {...}, volpathmis: {...}, ratio}``, each estimator's
-    ``{seconds, error, efficiency, mean_ratio}`` (module doc); ``ratio`` convsss's efficiency over volpathmis's."""
+def bench_efficiency(names, width=96, spp=32, seeds=12, reference_spp=1024, walk_depth="auto"):
+    """One row per scene: ``{scene, walk_depth, reference_noise, convsss: {...}, volpathmis: {...}, ratio}``, each
+    estimator's ``{seconds, error, efficiency, mean_ratio}`` (module doc); ``ratio`` convsss's efficiency over
+    volpathmis's; convsss renders at ``walk_depth`` (``"auto"``, a number, ``inf``)."""
     import drjit as dr
     import numpy as np
 
@@ -66,8 +68,9 @@ def bench_efficiency(names, width=96, spp=32, seeds=12, reference_spp=1024):
                                   for k, share in enumerate(shares)) / reference_spp)
         truth = references[0]
         noise = 0.5 * relative_mse(truth, references[1], mask)
-        row = {"scene": name, "reference_noise": noise}
-        for label, integrator in (("convsss", mi.load_dict({"type": "convsss"})), ("volpathmis", volpath)):
+        row = {"scene": name, "walk_depth": str(walk_depth), "reference_noise": noise}
+        ours = mi.load_dict({"type": "convsss", "walk_depth": walk_depth})
+        for label, integrator in (("convsss", ours), ("volpathmis", volpath)):
             _timed(mi, dr, scene, integrator, spp, 1 << 30)
             seconds, errors, means = [], [], []
             for seed in range(seeds):
@@ -98,6 +101,19 @@ def efficiency_table(rows):
     return "\n".join(lines)
 
 
+def _walk_depth(text):
+    """``auto``, or a float (``inf`` included) of at least 0."""
+    if text == "auto":
+        return text
+    try:
+        depth = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither auto nor a number") from None
+    if not depth >= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} is below 0")
+    return depth
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m convsss.bench.efficiency",
                                      description=__doc__.split("\n\n")[0])
@@ -107,6 +123,8 @@ def main(argv=None):
     parser.add_argument("--seeds", type=int, default=12, help="renders of distinct seeds per estimator (default 12)")
     parser.add_argument("--reference-spp", type=int, default=1024,
                         help="samples per pixel of each of the two volpathmis references (default 1024)")
+    parser.add_argument("--walk-depth", default="auto", type=_walk_depth,
+                        help="convsss's walk_depth: auto (the default), a number of scattering events, or inf")
     parser.add_argument("-o", "--output", help="write the rows as JSON to this file")
     args = parser.parse_args(argv)
     from .volpath import VOLPATH_SCENES
@@ -117,7 +135,7 @@ def main(argv=None):
         parser.error(f"unknown scene {unknown[0]!r}: one of {', '.join(sorted({**VOLPATH_SCENES, **WALK_SCENES}))}")
     if min(args.width, args.spp, args.seeds, args.reference_spp) < 1:
         parser.error("--width, --spp, --seeds and --reference-spp are at least 1")
-    rows = bench_efficiency(args.scenes, args.width, args.spp, args.seeds, args.reference_spp)
+    rows = bench_efficiency(args.scenes, args.width, args.spp, args.seeds, args.reference_spp, args.walk_depth)
     print(efficiency_table(rows))
     if args.output:
         from ..files import atomic_write, text_writer
