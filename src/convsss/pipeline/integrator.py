@@ -299,8 +299,8 @@ class ConvsssIntegrator(mi.SamplingIntegrator):
         if session.tracer is None or session.tracer.scene is not scene:
             # Called by another integrator's loop (e.g. Mitsuba's `aov`) without our render(): first sensor.
             session.prepare(scene, scene.sensors()[0], 0)
-        # Mitsuba's camera rays hold the film's size as literals: evaluated apart, the strategy's kernel is the same
-        # at any image size (a warm kernel cache serves it).
+        # Camera rays hold the film's size as literals: evaluated apart, the strategy's kernel is the same at any
+        # image size (a warm kernel cache serves it).
         dr.make_opaque(ray)
         if session.tracer.scene.emitters():
             radiance, valid = session.tracer.strategy.trace(sampler, ray)
