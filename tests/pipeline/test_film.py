@@ -75,3 +75,14 @@ def test_a_render_in_parts_is_the_render_of_all_their_samples(mi, sphere_scene):
     assert lit.sum() > 50
     assert abs(parts[lit].mean() / whole[lit].mean() - 1.0) < 0.02
     assert not np.array_equal(parts, whole)
+
+
+def test_a_render_not_developed_leaves_its_image_in_the_film(mi, sphere_scene):
+    """``develop=False`` (Mitsuba's): an empty tensor back, the film holding what ``develop()`` turns into the image a
+    developed render of the same seed gives."""
+    scene = mi.load_dict(sphere_scene(res=16, spp=2))
+    integrator, sensor = scene.integrator(), scene.sensors()[0]
+    image = np.array(integrator.render(scene, sensor, seed=3))
+    empty = integrator.render(scene, sensor, seed=3, develop=False)
+    assert dr.width(empty.array) == 0
+    np.testing.assert_array_equal(np.array(sensor.film().develop()), image)
