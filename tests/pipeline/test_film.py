@@ -62,6 +62,7 @@ def test_the_splat_sums_the_same_bits_on_any_number_of_threads(mi):
     assert images[0] == images[1]
 
 
+@pytest.mark.slow
 def test_a_render_in_parts_is_the_render_of_all_their_samples(mi, sphere_scene):
     """``samples_per_pass`` splits a render into parts added to one film: the parts' image weighs each pixel's
     samples as one render of all of them would (the filter's weights summed), so the transport's image at 4 spp in
@@ -86,3 +87,37 @@ def test_a_render_not_developed_leaves_its_image_in_the_film(mi, sphere_scene):
     empty = integrator.render(scene, sensor, seed=3, develop=False)
     assert dr.width(empty.array) == 0
     np.testing.assert_array_equal(np.array(sensor.film().develop()), image)
+
+
+@pytest.mark.parametrize("rfilter", [pytest.param("box", marks=pytest.mark.slow), "gaussian",
+                                     pytest.param("lanczos", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("crop, border", [(None, False), ((3, 2, 7, 5), True)])
+def test_the_splat_adjoint_is_the_derivative_of_the_developed_image(mi, rfilter, crop, border):
+    """:func:`splat_adjoint` against Dr.Jit's reverse derivative of Mitsuba's ``put`` and ``develop`` (how the
+    gradients were taken before) for random values, positions and image gradients: the same to float round-off."""
+    from convsss.pipeline import film as films
+
+    sensor = _sensor(mi, rfilter, crop, border, pixel_format="rgba")
+    film = sensor.film()
+    count = film.prepare(["extra.Y"])
+    _, _, _, position = films.camera_samples(sensor, 11, 4)
+    rng = np.random.default_rng(3)
+    n = dr.width(position)
+    crop_size = film.crop_size()
+    gradient = mi.TensorXf(rng.normal(size=(crop_size[1], crop_size[0], count - 1)).astype(np.float32))
+    ours = films.splat_adjoint(film, position, 4, gradient)
+    with dr.resume_grad():
+        rgb = mi.Color3f(*[mi.Float(rng.uniform(0.1, 1.0, n).astype(np.float32)) for _ in range(3)])
+        dr.enable_grad(rgb)
+        block = film.create_block()
+        block.set_offset(film.crop_offset())
+        ones = dr.ones(mi.Float, n)
+        block.put(position, [rgb.x, rgb.y, rgb.z, ones, ones, dr.zeros(mi.Float, n)])
+        film.clear()
+        film.put_block(block)
+        developed = film.develop()
+        dr.backward_from(dr.sum(developed * gradient, axis=None))
+        theirs = dr.grad(rgb)
+    for c in range(3):
+        expected = np.array(theirs[c])
+        np.testing.assert_allclose(np.array(ours[c]), expected, rtol=1e-4, atol=1e-5 * np.abs(expected).max())

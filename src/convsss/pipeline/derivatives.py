@@ -48,7 +48,8 @@ import numpy as np
 
 from ..backend import import_mitsuba
 from ..errors import ConvsssError
-from .film import camera_samples
+from .film import camera_samples, channels, sampled_extent, splat_adjoint
+from .film import image as film_image
 from .parts import pass_seed, samples_per_pixel, shares
 
 mi = import_mitsuba()
@@ -203,22 +204,6 @@ def _coefficients(medium):
     return sigma_s, sigma_t
 
 
-# --- the film -----------------------------------------------------------------------------------------------------
-def _splat(film, channels, position, value):
-    """The film's image of per-sample ``value`` (Color3f) splatted at ``position`` (its AOVs 0); the film is left
-    empty for the next. Mitsuba's ``ImageBlock.put``, which Dr.Jit differentiates in reverse (:func:`_adjoint`), where
-    :func:`.film.splat`'s loop has no reverse derivative: its sums' last bits vary with the threads."""
-    block = film.create_block()
-    n = dr.width(value)
-    alpha = [dr.ones(mi.Float, n)] if mi.has_flag(film.flags(), mi.FilmFlags.Alpha) else []
-    zeros = [dr.zeros(mi.Float, n)] * (channels - 4 - len(alpha))
-    block.put(mi.Point2f(position), [value.x, value.y, value.z, *alpha, dr.ones(mi.Float, n), *zeros])
-    film.put_block(block)
-    image = film.develop()
-    film.clear()
-    return image
-
-
 # --- Mitsuba's render_backward / render_forward --------------------------------------------------------------------
 def _walk_to_the_end(session):
     """The prepared walk of ``session`` (a :class:`~.session.RenderSession`), refused in one line where it does not
@@ -251,56 +236,49 @@ def _walked(integrator, scene, sensor, seed, params):
 
 def _parts(integrator, scene, sensor, seed, spp, walk, adjoint_of=None):
     """Per part of the render (at most :data:`LANES` samples, seed :func:`~.parts.pass_seed`): ``(film, positions,
-    weights, radiance, jacobian, adjoint, share)`` of its camera samples, ``share`` its part of the samples per pixel,
-    ``adjoint`` the adjoint radiance per sample ``adjoint_of(film, positions, weights)`` gives (None without), times
-    the share. Where the walk replays (:attr:`~.walk.RandomWalk.replayed`), each part is walked twice on the same random
-    numbers: first for its radiance, then with the radiance and the adjoint (Eq. G3)."""
+    weights, radiance, jacobian, adjoint, share, part_spp)`` of its camera samples, ``part_spp`` its samples per pixel
+    and ``share`` their part of all, ``adjoint`` the adjoint radiance per sample ``adjoint_of(film, positions, weights,
+    part_spp)`` gives (None without), times the share. Where the walk replays (:attr:`~.walk.RandomWalk.replayed`),
+    each part is walked twice on the same random numbers: first for its radiance, then with the radiance and the
+    adjoint (Eq. G3)."""
     film = sensor.film()
-    pixels = math.prod(film.crop_size() + 2 * (film.rfilter().border_size() if film.sample_border() else 0))
+    pixels = math.prod(sampled_extent(film)[0])
     spp = samples_per_pixel(spp, sensor)
     film.prepare(integrator.aov_names())
     for k, share in enumerate(shares(spp, most=max(1, LANES // pixels))):
         with dr.suspend_grad():
             sampler, ray, weight, position = camera_samples(sensor, pass_seed(seed, k), share)
-            adjoint = None if adjoint_of is None else adjoint_of(film, position, weight) * (share / spp)
+            adjoint = None if adjoint_of is None else adjoint_of(film, position, weight, share) * (share / spp)
             if walk.replayed is not None:
                 replay, walk.replayed = walk.replayed, None
                 replay.radiance, _ = walk.trace(sampler.clone(), ray)
                 replay.adjoint, walk.replayed = adjoint, replay
             radiance, _, jacobian = walk.trace_derivatives(sampler, ray)
-        yield film, position, weight, radiance, jacobian, adjoint, share / spp
+        yield film, position, weight, radiance, jacobian, adjoint, share / spp, share
 
 
-def _channels(integrator, film):
-    return film.base_channels_count() + len(integrator.aov_names())
-
-
-def _adjoint(integrator, film, position, weight, grad_in):
-    """Per sample, the adjoint radiance: ``grad_in`` (the image's gradient) through the film's splatting of the
-    samples at ``position`` with ``weight`` (differentiated, as Mitsuba's integrators do)."""
-    with dr.resume_grad():
-        adjoint = dr.full(mi.Color3f, 1.0, dr.width(position))
-        dr.enable_grad(adjoint)
-        image = _splat(film, _channels(integrator, film), position, adjoint * weight)
-        dr.set_grad(image, grad_in)
-        dr.enqueue(dr.ADMode.Backward, image)
-        dr.traverse(dr.ADMode.Backward)
-        return dr.grad(adjoint)
+def _image(integrator, film, position, value, spp):
+    """The film's image of per-sample ``value`` (Color3f; alpha 1, AOVs 0) at ``position`` (:func:`.film.image`)."""
+    width = dr.width(value)
+    zeros = [dr.zeros(mi.Float, width)] * len(integrator.aov_names())
+    return film_image(film, position, channels(film, value, dr.full(mi.Bool, True, width), zeros), spp)
 
 
 def render_backward(integrator, scene, params, grad_in, sensor, seed, spp):
     """``grad_in`` (the loss's gradient with respect to the image) into the gradients of the differentiated media's
-    parameters: per sample its adjoint radiance (:func:`_adjoint`), times its Jacobian (Eq. G2), summed, then through
-    the homogeneous media's coefficients to their parameters. A heterogeneous medium's albedo varies from one
-    scattering vertex to the next: its walks are replayed (path replay backpropagation, Vicini, Speierer and Jakob
+    parameters: per sample its adjoint radiance (:func:`.film.splat_adjoint`), times its Jacobian (Eq. G2), summed,
+    then through the homogeneous media's coefficients to their parameters. A heterogeneous medium's albedo varies from
+    one scattering vertex to the next: its walks are replayed (path replay backpropagation, Vicini, Speierer and Jakob
     2021), each vertex sending its score times the adjoint radiance still to come to the albedo there (Eq. G3,
     :func:`replay_scattering`, :func:`replay_bsdf`)."""
     with _walked(integrator, scene, sensor, seed, params) as (walk, media, replay):
         totals = [dr.zeros(mi.Color3f, 1) for _ in range(2 * len(media))]
         walk.replayed = replay
         try:
-            for _, _, _, _, jacobian, adjoint, _ in _parts(integrator, scene, sensor, seed, spp, walk,
-                                                           lambda *splat: _adjoint(integrator, *splat, grad_in)):
+            def adjoint_of(film, position, weight, part):  # the image's gradient back to each sample (Eq. G2's adjoint)
+                return weight * splat_adjoint(film, position, part, grad_in)
+
+            for _, _, _, _, jacobian, adjoint, _, _ in _parts(integrator, scene, sensor, seed, spp, walk, adjoint_of):
                 for i, j in enumerate(jacobian):
                     totals[i] += mi.Color3f(*[dr.sum(adjoint[c] * j[c]) for c in range(3)])
                 dr.eval(totals)
@@ -326,11 +304,11 @@ def render_forward(integrator, scene, params, sensor, seed, spp):
                 dr.forward_to(sigma_s, sigma_t)
                 tangents += [mi.Color3f(dr.grad(sigma_t)), mi.Color3f(dr.grad(sigma_s))]
         image = 0.0
-        for film, position, weight, _, jacobian, _, share in _parts(integrator, scene, sensor, seed, spp, walk):
+        for film, position, weight, _, jacobian, _, share, part in _parts(integrator, scene, sensor, seed, spp, walk):
             tangent = dr.zeros(mi.Color3f, dr.width(position))
             for j, t in zip(jacobian, tangents):
                 tangent += j * t
-            image = image + _splat(film, _channels(integrator, film), position, tangent * weight) * share
+            image = image + _image(integrator, film, position, tangent * weight, part) * share
             dr.eval(image)
     return image
 
@@ -344,10 +322,10 @@ def derivative_images(integrator, medium, spp, seed):
     images = [0.0, 0.0, 0.0]
     walk.differentiate([medium])
     try:
-        for film, position, weight, radiance, jacobian, _, share in _parts(integrator, state.scene, state.sensor,
-                                                                           seed, spp, walk):
+        for film, position, weight, radiance, jacobian, _, share, part in _parts(integrator, state.scene, state.sensor,
+                                                                                 seed, spp, walk):
             for k, value in enumerate((radiance, *jacobian)):
-                images[k] = images[k] + _splat(film, _channels(integrator, film), position, value * weight) * share
+                images[k] = images[k] + _image(integrator, film, position, value * weight, part) * share
     finally:
         walk.differentiate([])
     return tuple(np.array(image, dtype=np.float64)[..., :3] for image in images)

@@ -69,9 +69,7 @@ def splat(film, position, values, spp):
     :func:`camera_samples`' layout at ``spp`` samples per pixel) reconstructed by the film's filter at ``position``
     (module doc): each pixel a lane that adds the samples reaching it in a fixed order (the pixels its filter reaches
     row by row, each pixel's samples in turn), so the sums are the same on any number of threads."""
-    rfilter = film.rfilter()
-    box = rfilter.is_box_filter()
-    n = 0 if box else math.ceil(rfilter.radius() - 0.5)
+    rfilter, box, n = _reach(film)
     size, origin = sampled_extent(film)
     crop, crop_offset = film.crop_size(), film.crop_offset()
     pixel = dr.arange(mi.UInt32, dr.prod(crop))
@@ -105,6 +103,53 @@ def splat(film, position, values, spp):
     for c, total in enumerate(sums):
         dr.scatter(tensor, total, pixel * len(values) + c)
     return mi.ImageBlock(mi.TensorXf(tensor, (crop[1], crop[0], len(values))), crop_offset, rfilter)
+
+
+def _reach(film):
+    """``(rfilter, box, n)``: the film's filter, whether it is a box, and the pixels ``n`` a sample reaches on each side
+    of its own (module doc)."""
+    rfilter = film.rfilter()
+    box = rfilter.is_box_filter()
+    return rfilter, box, 0 if box else math.ceil(rfilter.radius() - 0.5)
+
+
+def image(film, position, values, spp):
+    """The film's developed image (H, W, channels) of ``values`` alone (:func:`splat`), the film left empty."""
+    film.clear()
+    film.put_block(splat(film, position, values, spp))
+    developed = film.develop()
+    dr.eval(developed)
+    film.clear()
+    return developed
+
+
+def splat_adjoint(film, position, spp, gradient):
+    """The adjoint of :func:`image` for R, G and B: per sample (:func:`camera_samples`' layout at ``spp`` samples per
+    pixel, at ``position``), the derivative of ``sum(gradient * image)`` (``gradient`` a tensor of the image's shape)
+    with respect to its R, G and B values, ``sum_q f_q gradient[q] / W[q]`` over the pixels ``q`` of the crop its filter
+    reaches, ``f_q`` its weight there and ``W[q]`` the pixel's summed weights (the film divides by them). Each sample a
+    lane, in a fixed order: the same bits on any number of threads."""
+    rfilter, box, n = _reach(film)
+    size, origin = sampled_extent(film)
+    crop, crop_offset = film.crop_size(), film.crop_offset()
+    width = dr.width(position)
+    source = dr.arange(mi.UInt32, width) // spp
+    x, y = mi.Int32(source % size[0]) + origin[0], mi.Int32(source // size[0]) + origin[1]  # film coordinates
+    weights = splat(film, position, [dr.ones(mi.Float, width)], spp).tensor().array  # W per pixel of the crop
+    channels, values = gradient.shape[2], gradient.array
+    adjoint = dr.zeros(mi.Color3f, width)
+    for dy in range(-n, n + 1):
+        for dx in range(-n, n + 1):
+            qx, qy = x + dx - crop_offset[0], y + dy - crop_offset[1]  # crop coordinates of the pixel reached
+            inside = (qx >= 0) & (qx < crop[0]) & (qy >= 0) & (qy < crop[1])
+            pixel = mi.UInt32(dr.select(inside, qy * crop[0] + qx, 0))
+            reach = mi.Float(1.0) if box else (rfilter.eval(mi.Float(x + dx) + 0.5 - position.x, inside)
+                                                * rfilter.eval(mi.Float(y + dy) + 0.5 - position.y, inside))
+            total = dr.gather(mi.Float, weights, pixel, inside)
+            scale = dr.select(inside & (total != 0.0), reach / total, 0.0)
+            for c in range(3):
+                adjoint[c] += scale * dr.gather(mi.Float, values, pixel * channels + c, inside)
+    return adjoint
 
 
 def render(sample, sensor, seed, spp, most, stop, develop=True):
