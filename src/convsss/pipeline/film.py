@@ -6,7 +6,8 @@ ran Mitsuba's film kernel on one thread: 40 % of a cheap walked render (issue 60
 own (:func:`render`, Mitsuba's ``SamplingIntegrator.render`` step for step: samples laid out pixel by pixel as
 Mitsuba's, its sampler, camera rays, channels and film), and the reconstruction is a gather (:func:`splat`): each
 pixel of the crop sums, on its own lane, the samples of the pixels its filter reaches, in a fixed order. The image is
-then bit-identical whatever the thread count, and the film's kernel runs on every thread.
+then bit-identical whatever the thread count, and the film's kernel runs on every thread. Gradients go back through
+its transpose (:func:`splat_adjoint`), each sample a lane summing the pixels it reaches.
 
 The weights are Mitsuba's coalesced ``ImageBlock.put``'s: a sample at ``x`` in pixel ``floor(x)`` reaches the
 ``2n + 1`` pixels ``floor(x) - n ... floor(x) + n`` along each axis, ``n = ceil(radius - 1/2)``, with weight
@@ -64,6 +65,14 @@ def channels(film, radiance, valid, aovs):
     return [radiance.x, radiance.y, radiance.z, *alpha, ones, *aovs]
 
 
+def _reach(film):
+    """``(rfilter, box, n)``: the film's filter, whether it is a box, and the pixels ``n`` a sample reaches on each side
+    of its own (module doc)."""
+    rfilter = film.rfilter()
+    box = rfilter.is_box_filter()
+    return rfilter, box, 0 if box else math.ceil(rfilter.radius() - 0.5)
+
+
 def splat(film, position, values, spp):
     """The image block of the crop window holding ``values`` (a list of channels, per sample of
     :func:`camera_samples`' layout at ``spp`` samples per pixel) reconstructed by the film's filter at ``position``
@@ -105,14 +114,6 @@ def splat(film, position, values, spp):
     return mi.ImageBlock(mi.TensorXf(tensor, (crop[1], crop[0], len(values))), crop_offset, rfilter)
 
 
-def _reach(film):
-    """``(rfilter, box, n)``: the film's filter, whether it is a box, and the pixels ``n`` a sample reaches on each side
-    of its own (module doc)."""
-    rfilter = film.rfilter()
-    box = rfilter.is_box_filter()
-    return rfilter, box, 0 if box else math.ceil(rfilter.radius() - 0.5)
-
-
 def image(film, position, values, spp):
     """The film's developed image (H, W, channels) of ``values`` alone (:func:`splat`), the film left empty."""
     film.clear()
@@ -136,7 +137,7 @@ def splat_adjoint(film, position, spp, gradient):
     source = dr.arange(mi.UInt32, width) // spp
     x, y = mi.Int32(source % size[0]) + origin[0], mi.Int32(source // size[0]) + origin[1]  # film coordinates
     weights = splat(film, position, [dr.ones(mi.Float, width)], spp).tensor().array  # W per pixel of the crop
-    channels, values = gradient.shape[2], gradient.array
+    count, values = gradient.shape[2], gradient.array
     adjoint = dr.zeros(mi.Color3f, width)
     for dy in range(-n, n + 1):
         for dx in range(-n, n + 1):
@@ -148,7 +149,7 @@ def splat_adjoint(film, position, spp, gradient):
             total = dr.gather(mi.Float, weights, pixel, inside)
             scale = dr.select(inside & (total != 0.0), reach / total, 0.0)
             for c in range(3):
-                adjoint[c] += scale * dr.gather(mi.Float, values, pixel * channels + c, inside)
+                adjoint[c] += scale * dr.gather(mi.Float, values, pixel * count + c, inside)
     return adjoint
 
 
@@ -169,6 +170,6 @@ def render(sample, sensor, seed, spp, most, stop, develop=True):
         dr.eval()
     if not develop:
         return mi.TensorXf()
-    image = film.develop()
-    dr.eval(image)
-    return image
+    developed = film.develop()
+    dr.eval(developed)
+    return developed
