@@ -102,16 +102,16 @@ def efficiency_table(rows):
 
 
 def _walk_depth(text):
-    """``auto``, or a float (``inf`` included) of at least 0."""
-    if text == "auto":
-        return text
+    """``--walk-depth`` as the integrator checks its ``walk_depth`` (:func:`~convsss.pipeline.params.render_parameters`:
+    auto, a number of at least 0, inf)."""
+    from ..errors import ConvsssError
+    from ..pipeline.params import render_parameters
+
+    declared = next(p for p in render_parameters() if p.name == "walk_depth")
     try:
-        depth = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is neither auto nor a number") from None
-    if not depth >= 0:
-        raise argparse.ArgumentTypeError(f"{text!r} is below 0")
-    return depth
+        return declared.check(text)
+    except ConvsssError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def main(argv=None):
